@@ -1,0 +1,123 @@
+// Runs the real `sdoslam` executable as a user would and checks exit codes, messages and files.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+
+#include "sdoslam/io/trajectory.h"
+#include "sdoslam/testing/test_util.h"
+
+namespace sdoslam {
+namespace {
+
+struct Result {
+  int exit_code;
+  std::string output;  // stdout and stderr together
+};
+
+Result RunSdoslam(const std::string& arguments) {
+  const std::string command = std::string(SDOSLAM_EXECUTABLE) + " " + arguments + " 2>&1";
+  FILE* pipe = popen(command.c_str(), "r");
+  if (pipe == nullptr) return {-1, "popen failed"};
+  std::string output;
+  std::array<char, 4096> buffer;
+  size_t n;
+  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) output.append(buffer.data(), n);
+  const int status = pclose(pipe);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
+}
+
+TEST(Cli, HelpListsSubcommands) {
+  const Result r = RunSdoslam("--help");
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_NE(r.output.find("eval"), std::string::npos);
+  EXPECT_NE(r.output.find("demo"), std::string::npos);
+  EXPECT_EQ(RunSdoslam("eval --help").exit_code, 0);
+}
+
+TEST(Cli, CommandLineMistakesFailWithAMessage) {
+  Result r = RunSdoslam("");
+  EXPECT_NE(r.exit_code, 0);
+  r = RunSdoslam("eval --est x.txt");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("--gt"), std::string::npos) << r.output;
+  r = RunSdoslam("eval --gt a --est b --frobnicate");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("frobnicate"), std::string::npos) << r.output;
+  r = RunSdoslam("eval --gt a --est b --align affine");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("affine"), std::string::npos) << r.output;
+  r = RunSdoslam("--log-level loud demo --out /tmp/x");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("unknown log level 'loud'"), std::string::npos) << r.output;
+}
+
+class CliEval : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    gt_ = testing::SharedDir() / "data" / "tum_fr2_desk_50" / "groundtruth.txt";
+    if (!std::filesystem::exists(gt_)) GTEST_SKIP() << "no " << gt_;
+  }
+  std::filesystem::path gt_;
+  testing::TempDir dir_;
+};
+
+TEST_F(CliEval, RigidlyMovedGroundTruthScoresZeroAndWritesJsonAndPlots) {
+  // The real fr2_desk ground truth, moved by a rigid transform, evaluated against itself, and a
+  // copy whose positions are pushed 1 cm along the (GT-frame) x axis on every other pose.
+  Trajectory gt = ReadTumTrajectory(gt_);
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(0.7, Eigen::Vector3d(0.3, 1, 0.2).normalized()).toRotationMatrix();
+  T.translation() = Eigen::Vector3d(1, 2, 3);
+  Trajectory moved = gt;
+  for (auto& p : moved) p.T_world_camera = T * p.T_world_camera;
+  WriteTumTrajectory(dir_ / "moved.txt", moved);
+
+  const std::string json = (dir_ / "r.json").string();
+  const Result r = RunSdoslam("eval --gt " + gt_.string() + " --est " + (dir_ / "moved.txt").string() +
+                       " --json " + json + " --plot-dir " + (dir_ / "plots").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("ATE rmse"), std::string::npos);
+  EXPECT_NE(r.output.find("RTE trans"), std::string::npos);
+  const auto j = nlohmann::json::parse(testing::ReadText(json));
+  EXPECT_EQ(j["estimates"][0]["matched_poses"].get<size_t>(), gt.size());
+  EXPECT_LT(j["estimates"][0]["ate"]["rmse"].get<double>(), 1e-6);
+  EXPECT_LT(j["estimates"][0]["rte"]["translation"]["rmse"].get<double>(), 1e-6);
+  EXPECT_TRUE(std::filesystem::exists(dir_ / "plots" / "moved_top.png"));
+  EXPECT_TRUE(std::filesystem::exists(dir_ / "plots" / "ate_over_time.svg"));
+}
+
+TEST_F(CliEval, BadInputEndsInOneClearMessage) {
+  Result r = RunSdoslam("eval --no-plots --gt " + gt_.string() + " --est " + (dir_ / "missing.txt").string());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.output, "error: file not found: " + (dir_ / "missing.txt").string() + "\n");
+
+  testing::WriteText(dir_ / "bad.txt", "1.0 0 0 0 0 0 0 1\n2.0 0 0\n");
+  r = RunSdoslam("eval --no-plots --gt " + gt_.string() + " --est " + (dir_ / "bad.txt").string());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("bad.txt:2: expected 8 columns"), std::string::npos) << r.output;
+
+  testing::WriteText(dir_ / "late.txt", "5.0 0 0 0 0 0 0 1\n6.0 0 0 0 0 0 0 1\n7.0 0 0 0 0 0 0 1\n");
+  r = RunSdoslam("eval --no-plots --gt " + gt_.string() + " --est " + (dir_ / "late.txt").string());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("[5.000000, 7.000000]"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("[1311868163.869700"), std::string::npos) << r.output;
+
+  testing::WriteText(dir_ / "empty.txt", "# nothing\n");
+  r = RunSdoslam("eval --no-plots --gt " + gt_.string() + " --est " + (dir_ / "empty.txt").string());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("no poses"), std::string::npos) << r.output;
+}
+
+TEST(CliDemo, RunsWithoutDataAndPrintsResults) {
+  testing::TempDir dir;
+  const Result r = RunSdoslam("demo --out " + dir.path().string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("ATE rmse"), std::string::npos);
+  EXPECT_TRUE(std::filesystem::exists(dir / "groundtruth.txt"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "plots" / "ate_over_time.png"));
+}
+
+}  // namespace
+}  // namespace sdoslam

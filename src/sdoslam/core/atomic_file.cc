@@ -1,0 +1,86 @@
+#include "sdoslam/core/atomic_file.h"
+
+#include <unistd.h>
+
+#include <fstream>
+#include <string>
+#include <system_error>
+
+#include "sdoslam/core/error.h"
+
+namespace sdoslam {
+namespace {
+
+std::filesystem::path TemporaryPathFor(const std::filesystem::path& path) {
+  std::filesystem::path tmp = path;
+  tmp.replace_filename("." + path.stem().string() + ".tmp" + std::to_string(::getpid()) +
+                       path.extension().string());
+  return tmp;
+}
+
+void PrepareParent(const std::filesystem::path& path) {
+  const auto parent = path.parent_path();
+  if (parent.empty()) return;
+  std::error_code ec;
+  std::filesystem::create_directories(parent, ec);
+  if (ec) throw Error("cannot create folder " + parent.string() + ": " + ec.message());
+}
+
+void Commit(const std::filesystem::path& tmp, const std::filesystem::path& path) {
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) {
+    std::filesystem::remove(tmp, ec);
+    throw Error("cannot write " + path.string() + ": " + ec.message());
+  }
+}
+
+}  // namespace
+
+void WriteFileAtomically(const std::filesystem::path& path,
+                         const std::function<void(std::ostream&)>& write) {
+  PrepareParent(path);
+  const auto tmp = TemporaryPathFor(path);
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw Error("cannot write " + path.string());
+    try {
+      write(out);
+    } catch (...) {
+      out.close();
+      std::error_code ec;
+      std::filesystem::remove(tmp, ec);
+      throw;
+    }
+    out.flush();
+    if (!out) {
+      out.close();
+      std::error_code ec;
+      std::filesystem::remove(tmp, ec);
+      throw Error("cannot write " + path.string() + " (disk full?)");
+    }
+  }
+  Commit(tmp, path);
+}
+
+void WriteFileAtomically(const std::filesystem::path& path,
+                         const std::function<bool(const std::filesystem::path&)>& write) {
+  PrepareParent(path);
+  const auto tmp = TemporaryPathFor(path);
+  bool ok = false;
+  try {
+    ok = write(tmp);
+  } catch (...) {
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
+    throw;
+  }
+  if (!ok || !std::filesystem::exists(tmp)) {
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
+    throw Error("cannot write " + path.string());
+  }
+  Commit(tmp, path);
+}
+
+}  // namespace sdoslam

@@ -1,0 +1,143 @@
+#include "sdoslam/core/camera.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <opencv2/calib3d.hpp>
+
+#include "sdoslam/core/error.h"
+
+namespace sdoslam {
+namespace {
+
+void Require(bool ok, const std::string& field, const std::string& why) {
+  if (!ok) throw Error("camera." + field + ": " + why);
+}
+
+}  // namespace
+
+void CameraOptions::Check() const {
+  Require(width > 0 && width <= 16384, "width", "must be in 1..16384, got " + std::to_string(width));
+  Require(height > 0 && height <= 16384, "height",
+          "must be in 1..16384, got " + std::to_string(height));
+  Require(std::isfinite(fx) && fx > 0, "fx", "focal length must be positive");
+  Require(std::isfinite(fy) && fy > 0, "fy", "focal length must be positive");
+  Require(std::isfinite(cx) && cx >= 0 && cx <= width, "cx", "principal point must lie in the image");
+  Require(std::isfinite(cy) && cy >= 0 && cy <= height, "cy",
+          "principal point must lie in the image");
+  for (const auto& [name, value] : {std::pair{"k1", k1}, {"k2", k2}, {"p1", p1}, {"p2", p2},
+                                    {"k3", k3}}) {
+    Require(std::isfinite(value), name, "must be finite");
+  }
+  Require(std::isfinite(fps) && fps > 0, "fps", "must be positive");
+  Require(std::isfinite(depth_factor) && depth_factor > 0, "depth_factor", "must be positive");
+  Require(std::isfinite(depth_min) && depth_min >= 0, "depth_min", "must be >= 0");
+  Require(std::isfinite(depth_max) && depth_max > depth_min, "depth_max",
+          "must be larger than depth_min");
+}
+
+CameraOptions ReadCameraOptions(ConfigMap& section) {
+  CameraOptions options;
+  section.Read("name", &options.name);
+  section.Read("width", &options.width);
+  section.Read("height", &options.height);
+  for (const char* key : {"fx", "fy", "cx", "cy"}) {
+    if (!section.Has(key)) {
+      throw Error(section.origin() + ": camera." + key + " is required");
+    }
+  }
+  section.Read("fx", &options.fx);
+  section.Read("fy", &options.fy);
+  section.Read("cx", &options.cx);
+  section.Read("cy", &options.cy);
+  section.Read("k1", &options.k1);
+  section.Read("k2", &options.k2);
+  section.Read("p1", &options.p1);
+  section.Read("p2", &options.p2);
+  section.Read("k3", &options.k3);
+  section.Read("fps", &options.fps);
+  section.Read("depth_factor", &options.depth_factor);
+  section.Read("depth_min", &options.depth_min);
+  section.Read("depth_max", &options.depth_max);
+  section.RejectUnknownKeys();
+  try {
+    options.Check();
+  } catch (const Error& e) {
+    throw Error(section.origin() + ": " + e.what());
+  }
+  return options;
+}
+
+void WriteCameraOptions(const CameraOptions& o, YAML::Emitter* out) {
+  YAML::Emitter& y = *out;
+  y << YAML::Key << "camera" << YAML::Value << YAML::BeginMap;
+  y << YAML::Key << "name" << YAML::Value << o.name;
+  y << YAML::Key << "width" << YAML::Value << o.width;
+  y << YAML::Key << "height" << YAML::Value << o.height;
+  y << YAML::Precision(17);
+  for (const auto& [key, value] :
+       {std::pair{"fx", o.fx}, {"fy", o.fy}, {"cx", o.cx}, {"cy", o.cy}, {"k1", o.k1},
+        {"k2", o.k2}, {"p1", o.p1}, {"p2", o.p2}, {"k3", o.k3}, {"fps", o.fps},
+        {"depth_factor", o.depth_factor}, {"depth_min", o.depth_min},
+        {"depth_max", o.depth_max}}) {
+    y << YAML::Key << key << YAML::Value << value;
+  }
+  y << YAML::EndMap;
+}
+
+CameraOptions LoadCameraConfig(const std::filesystem::path& path) {
+  ConfigMap root = ConfigMap::LoadFile(path);
+  std::optional<ConfigMap> section = root.Section("camera");
+  root.RejectUnknownKeys();
+  if (!section) throw Error(path.string() + ": missing the 'camera:' section");
+  return ReadCameraOptions(*section);
+}
+
+Camera::Camera(const CameraOptions& options) : options_(options) {
+  options_.Check();
+  has_distortion_ = options_.k1 != 0 || options_.k2 != 0 || options_.p1 != 0 ||
+                    options_.p2 != 0 || options_.k3 != 0;
+}
+
+Eigen::Vector2d Camera::Project(const Eigen::Vector3d& p) const {
+  const double inv_z = 1.0 / p.z();
+  return {options_.fx * p.x() * inv_z + options_.cx, options_.fy * p.y() * inv_z + options_.cy};
+}
+
+Eigen::Vector3d Camera::Unproject(const Eigen::Vector2d& pixel, double depth) const {
+  return {(pixel.x() - options_.cx) / options_.fx * depth,
+          (pixel.y() - options_.cy) / options_.fy * depth, depth};
+}
+
+Eigen::Vector2d Camera::Distort(const Eigen::Vector2d& pixel) const {
+  const CameraOptions& o = options_;
+  const double x = (pixel.x() - o.cx) / o.fx;
+  const double y = (pixel.y() - o.cy) / o.fy;
+  const double r2 = x * x + y * y;
+  const double radial = 1.0 + r2 * (o.k1 + r2 * (o.k2 + r2 * o.k3));
+  const double xd = x * radial + 2.0 * o.p1 * x * y + o.p2 * (r2 + 2.0 * x * x);
+  const double yd = y * radial + o.p1 * (r2 + 2.0 * y * y) + 2.0 * o.p2 * x * y;
+  return {o.fx * xd + o.cx, o.fy * yd + o.cy};
+}
+
+std::vector<cv::Point2f> Camera::UndistortPoints(const std::vector<cv::Point2f>& distorted) const {
+  if (!has_distortion_ || distorted.empty()) return distorted;
+  std::vector<cv::Point2f> undistorted;
+  // OpenCV's default is 5 fixed-point iterations, too few for the strong TUM distortion near the
+  // corners; iterate to sub-millipixel instead.
+  cv::undistortPoints(distorted, undistorted, cv::Mat(K()), DistortionCoefficients(), cv::noArray(),
+                      cv::Mat(K()),
+                      cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 30, 1e-9));
+  return undistorted;
+}
+
+cv::Matx33d Camera::K() const {
+  return {options_.fx, 0, options_.cx, 0, options_.fy, options_.cy, 0, 0, 1};
+}
+
+cv::Mat Camera::DistortionCoefficients() const {
+  return (cv::Mat_<double>(1, 5) << options_.k1, options_.k2, options_.p1, options_.p2,
+          options_.k3);
+}
+
+}  // namespace sdoslam

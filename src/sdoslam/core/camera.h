@@ -1,0 +1,75 @@
+#pragma once
+
+#include <Eigen/Core>
+#include <filesystem>
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "sdoslam/core/config.h"
+
+namespace YAML {
+class Emitter;
+}
+
+namespace sdoslam {
+
+// A pinhole RGB-D camera with radial-tangential (OpenCV "plumb bob") distortion, as the TUM and
+// Bonn datasets publish their calibration.
+struct CameraOptions {
+  std::string name = "camera";
+  int width = 640;   // image width in pixels
+  int height = 480;  // image height in pixels
+  double fx = 0.0;   // focal lengths and principal point, pixels
+  double fy = 0.0;
+  double cx = 0.0;
+  double cy = 0.0;
+  double k1 = 0.0;  // radial-tangential distortion (k1 k2 p1 p2 k3); all zero = undistorted
+  double k2 = 0.0;
+  double p1 = 0.0;
+  double p2 = 0.0;
+  double k3 = 0.0;
+  double fps = 30.0;            // nominal frame rate
+  double depth_factor = 5000.0;  // raw 16-bit depth units per metre
+  double depth_min = 0.1;       // depth outside [depth_min, depth_max] metres counts as missing
+  double depth_max = 10.0;
+
+  // Throws Error naming the first impossible field.
+  void Check() const;
+};
+
+// Reads the keys of a `camera:` section (all optional except fx fy cx cy); rejects unknown keys.
+CameraOptions ReadCameraOptions(ConfigMap& section);
+void WriteCameraOptions(const CameraOptions& options, YAML::Emitter* out);
+
+// Loads a camera config file: a YAML file with one `camera:` section.
+CameraOptions LoadCameraConfig(const std::filesystem::path& path);
+
+class Camera {
+ public:
+  explicit Camera(const CameraOptions& options);  // checks the options
+
+  const CameraOptions& options() const { return options_; }
+  int width() const { return options_.width; }
+  int height() const { return options_.height; }
+  bool HasDistortion() const { return has_distortion_; }
+
+  // Pinhole projection of a point in the camera frame to undistorted pixel coordinates.
+  Eigen::Vector2d Project(const Eigen::Vector3d& point_camera) const;
+  // Back-projects an undistorted pixel with its depth (metres, along the optical axis).
+  Eigen::Vector3d Unproject(const Eigen::Vector2d& pixel, double depth) const;
+
+  // Applies the lens distortion to an undistorted pixel (the forward model, used to render).
+  Eigen::Vector2d Distort(const Eigen::Vector2d& undistorted_pixel) const;
+  // Removes the lens distortion from measured pixels (iterative inverse, OpenCV).
+  std::vector<cv::Point2f> UndistortPoints(const std::vector<cv::Point2f>& distorted) const;
+
+  cv::Matx33d K() const;
+  cv::Mat DistortionCoefficients() const;  // 1x5: k1 k2 p1 p2 k3
+
+ private:
+  CameraOptions options_;
+  bool has_distortion_ = false;
+};
+
+}  // namespace sdoslam

@@ -1,0 +1,136 @@
+#include "sdoslam/core/camera.h"
+
+#include <gtest/gtest.h>
+#include <yaml-cpp/yaml.h>
+
+#include "sdoslam/testing/test_util.h"
+
+namespace sdoslam {
+namespace {
+
+CameraOptions Freiburg2() {
+  CameraOptions o;
+  o.fx = 520.908620;
+  o.fy = 521.007327;
+  o.cx = 325.141442;
+  o.cy = 249.701764;
+  o.k1 = 0.231222;
+  o.k2 = -0.784899;
+  o.p1 = -0.003257;
+  o.p2 = -0.000105;
+  o.k3 = 0.917205;
+  return o;
+}
+
+TEST(Camera, ProjectUnprojectRoundTrip) {
+  const Camera camera(Freiburg2());
+  const Eigen::Vector3d point(0.3, -0.2, 2.5);
+  const Eigen::Vector2d pixel = camera.Project(point);
+  EXPECT_NEAR(pixel.x(), 520.908620 * 0.3 / 2.5 + 325.141442, 1e-12);
+  EXPECT_TRUE(camera.Unproject(pixel, 2.5).isApprox(point, 1e-12));
+}
+
+TEST(Camera, UndistortInvertsDistortAcrossTheImage) {
+  const Camera camera(Freiburg2());
+  ASSERT_TRUE(camera.HasDistortion());
+  std::vector<cv::Point2f> distorted;
+  std::vector<Eigen::Vector2d> truth;
+  for (double v = 20; v <= 460; v += 40) {
+    for (double u = 20; u <= 620; u += 40) {
+      truth.emplace_back(u, v);
+      const Eigen::Vector2d d = camera.Distort({u, v});
+      distorted.emplace_back(static_cast<float>(d.x()), static_cast<float>(d.y()));
+    }
+  }
+  const auto undistorted = camera.UndistortPoints(distorted);
+  ASSERT_EQ(undistorted.size(), truth.size());
+  double worst = 0;
+  for (size_t k = 0; k < truth.size(); ++k) {
+    worst = std::max(worst, std::hypot(undistorted[k].x - truth[k].x(),
+                                       undistorted[k].y - truth[k].y()));
+  }
+  EXPECT_LT(worst, 2e-3);  // float storage limits this, not the iteration
+  // The distortion is real: near the corner it moves pixels by several pixels.
+  EXPECT_GT((camera.Distort({20, 20}) - Eigen::Vector2d(20, 20)).norm(), 3.0);
+}
+
+TEST(Camera, CheckRejectsImpossibleIntrinsics) {
+  auto expect_error = [](CameraOptions o, const std::string& field) {
+    try {
+      o.Check();
+      FAIL() << "no error for " << field;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("camera." + field), std::string::npos) << e.what();
+    }
+  };
+  CameraOptions o = Freiburg2();
+  EXPECT_NO_THROW(o.Check());
+  o.fx = -1;
+  expect_error(o, "fx");
+  o = Freiburg2();
+  o.cx = 700;
+  expect_error(o, "cx");
+  o = Freiburg2();
+  o.width = 0;
+  expect_error(o, "width");
+  o = Freiburg2();
+  o.depth_max = 0.05;
+  expect_error(o, "depth_max");
+  o = Freiburg2();
+  o.k1 = std::nan("");
+  expect_error(o, "k1");
+}
+
+TEST(CameraConfig, ShippedTumConfigsLoadWithPublishedValues) {
+  const auto dir = testing::SourceDir() / "configs";
+  const CameraOptions fr1 = LoadCameraConfig(dir / "tum_fr1.yaml");
+  const CameraOptions fr2 = LoadCameraConfig(dir / "tum_fr2.yaml");
+  const CameraOptions fr3 = LoadCameraConfig(dir / "tum_fr3.yaml");
+  EXPECT_DOUBLE_EQ(fr1.fx, 517.306408);
+  EXPECT_DOUBLE_EQ(fr1.k3, 1.163314);
+  EXPECT_DOUBLE_EQ(fr2.cy, 249.701764);
+  EXPECT_DOUBLE_EQ(fr2.k2, -0.784899);
+  EXPECT_DOUBLE_EQ(fr3.fy, 539.2);
+  EXPECT_FALSE(Camera(fr3).HasDistortion());
+  EXPECT_EQ(fr3.width, 640);
+  EXPECT_DOUBLE_EQ(fr3.depth_factor, 5000.0);
+}
+
+TEST(CameraConfig, WrittenConfigReadsBackIdentically) {
+  testing::TempDir dir;
+  YAML::Emitter out;
+  out << YAML::BeginMap;
+  WriteCameraOptions(Freiburg2(), &out);
+  out << YAML::EndMap;
+  testing::WriteText(dir / "cam.yaml", out.c_str());
+  const CameraOptions back = LoadCameraConfig(dir / "cam.yaml");
+  EXPECT_EQ(back.fx, Freiburg2().fx);
+  EXPECT_EQ(back.k3, Freiburg2().k3);
+  EXPECT_EQ(back.width, 640);
+}
+
+TEST(CameraConfig, BadConfigsAreRejectedWithTheKey) {
+  testing::TempDir dir;
+  auto message = [&](const std::string& text) -> std::string {
+    testing::WriteText(dir / "c.yaml", text);
+    try {
+      LoadCameraConfig(dir / "c.yaml");
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return "(no error)";
+  };
+  const std::string ok = "camera:\n  fx: 500\n  fy: 500\n  cx: 320\n  cy: 240\n";
+  EXPECT_EQ(message(ok), "(no error)");
+  EXPECT_NE(message(ok + "  k9: 1\n").find("unknown key 'camera.k9'"), std::string::npos);
+  EXPECT_NE(message(ok + "extra: 1\n").find("unknown key 'extra'"), std::string::npos);
+  EXPECT_NE(message("camera:\n  fy: 500\n  cx: 320\n  cy: 240\n").find("camera.fx is required"),
+            std::string::npos);
+  EXPECT_NE(message("camera:\n  fx: -5\n  fy: 500\n  cx: 320\n  cy: 240\n").find("camera.fx"),
+            std::string::npos);
+  EXPECT_NE(message("other: 1\n").find("unknown key 'other'"), std::string::npos);
+  EXPECT_NE(message("{}\n").find("missing the 'camera:' section"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace sdoslam

@@ -1,0 +1,68 @@
+#include "sdoslam/core/config.h"
+
+#include <gtest/gtest.h>
+
+#include "sdoslam/testing/test_util.h"
+
+namespace sdoslam {
+namespace {
+
+std::string MessageOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+TEST(ConfigMap, ReadsValuesAndKeepsDefaultsForAbsentKeys) {
+  ConfigMap root = ConfigMap::LoadString("a: 3\nsection:\n  b: 2.5\n  name: hi\n", "inline");
+  int a = 0, missing = 42;
+  root.Read("a", &a);
+  root.Read("missing", &missing);
+  auto section = root.Section("section");
+  ASSERT_TRUE(section.has_value());
+  double b = 0;
+  std::string name;
+  section->Read("b", &b);
+  section->Read("name", &name);
+  EXPECT_EQ(a, 3);
+  EXPECT_EQ(missing, 42);
+  EXPECT_DOUBLE_EQ(b, 2.5);
+  EXPECT_EQ(name, "hi");
+  EXPECT_NO_THROW(section->RejectUnknownKeys());
+  EXPECT_NO_THROW(root.RejectUnknownKeys());
+  EXPECT_FALSE(root.Section("absent").has_value());
+}
+
+TEST(ConfigMap, UnknownKeyIsNamedWithItsPathAndLine) {
+  ConfigMap root = ConfigMap::LoadString("camera:\n  fx: 500\n  fxx: 1\n", "cam.yaml");
+  auto camera = root.Section("camera");
+  double fx = 0;
+  camera->Read("fx", &fx);
+  EXPECT_EQ(MessageOf([&] { camera->RejectUnknownKeys(); }),
+            "cam.yaml:3: unknown key 'camera.fxx' (known here: fx)");
+}
+
+TEST(ConfigMap, WrongTypesAndBadYamlAreReportedWithLine) {
+  ConfigMap root = ConfigMap::LoadString("n: 1\nwidth: wide\nlist: [1, 2]\n", "c.yaml");
+  int width = 0;
+  EXPECT_EQ(MessageOf([&] { root.Read("width", &width); }),
+            "c.yaml:2: width: cannot read 'wide' as an integer");
+  double value = 0;
+  EXPECT_EQ(MessageOf([&] { root.Read("list", &value); }), "c.yaml:3: list: expected a single value");
+  EXPECT_EQ(MessageOf([&] { root.Section("n"); }), "c.yaml:1: n: expected a mapping of settings");
+  EXPECT_NE(MessageOf([] { ConfigMap::LoadString("a: [1, 2\nb: 3\n", "bad.yaml"); }).find("bad.yaml:"),
+            std::string::npos);
+  EXPECT_NE(MessageOf([] { ConfigMap::LoadString("- 1\n- 2\n", "seq.yaml"); }).find("mapping"),
+            std::string::npos);
+}
+
+TEST(ConfigMap, MissingFileIsNamed) {
+  EXPECT_EQ(MessageOf([] { ConfigMap::LoadFile("/no/such/config.yaml"); }),
+            "config file not found: /no/such/config.yaml");
+}
+
+}  // namespace
+}  // namespace sdoslam

@@ -1,0 +1,16 @@
+#pragma once
+
+#include <stdexcept>
+#include <string>
+
+namespace sdoslam {
+
+// The one exception type the library throws for bad input (missing or malformed files, invalid
+// options, ...). Its message is meant for the user as is: it names the file, line or key.
+// The library never calls exit(); the `sdoslam` command catches this, prints it and exits 1.
+class Error : public std::runtime_error {
+ public:
+  explicit Error(const std::string& message) : std::runtime_error(message) {}
+};
+
+}  // namespace sdoslam

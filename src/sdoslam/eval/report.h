@@ -1,0 +1,48 @@
+#pragma once
+
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "sdoslam/eval/metrics.h"
+
+namespace sdoslam {
+
+struct EvaluationOptions {
+  AteOptions ate;
+  RteOptions rte;  // its max_time_difference, time_offset and scale are taken from `ate`
+  // Plane of the top-view plot: "xy", "xz", "yz", or "auto" (the two axes along which the
+  // ground truth extends most).
+  std::string plane = "auto";
+  void Check() const;
+};
+
+// Everything measured for one estimated trajectory.
+struct EstimateEvaluation {
+  std::string label;
+  size_t estimate_poses = 0;
+  size_t ground_truth_poses = 0;
+  AteResult ate;
+  std::optional<RteResult> rte;  // absent when the run is too short for the delta
+  std::string rte_note;          // why it is absent
+};
+
+EstimateEvaluation EvaluateEstimate(const Trajectory& ground_truth, const Trajectory& estimate,
+                                    const std::string& label, const EvaluationOptions& options);
+
+// A fixed-width table, one row per estimate: ATE statistics and RTE RMSEs.
+std::string FormatTable(const std::vector<EstimateEvaluation>& evaluations,
+                        const EvaluationOptions& options);
+
+nlohmann::json ToJson(const std::vector<EstimateEvaluation>& evaluations,
+                      const EvaluationOptions& options);
+
+// Writes, for each estimate, `<label>_top.{png,svg}` (ground truth, aligned estimate, error
+// segments) and one `ate_over_time.{png,svg}` with all estimates. Returns the files written.
+std::vector<std::filesystem::path> WriteEvaluationPlots(
+    const std::vector<EstimateEvaluation>& evaluations, const EvaluationOptions& options,
+    const std::filesystem::path& folder);
+
+}  // namespace sdoslam

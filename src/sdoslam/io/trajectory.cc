@@ -1,0 +1,72 @@
+#include "sdoslam/io/trajectory.h"
+
+#include <cmath>
+#include <cstdio>
+
+#include "sdoslam/core/atomic_file.h"
+#include "sdoslam/core/error.h"
+#include "sdoslam/core/text_file.h"
+
+namespace sdoslam {
+
+Trajectory ReadTumTrajectory(const std::filesystem::path& path,
+                             const TrajectoryReadOptions& options) {
+  Trajectory trajectory;
+  ForEachDataLine(path, [&](int line, const std::vector<std::string>& tokens) {
+    if (tokens.size() != 8) {
+      throw Error(Where(path, line) + "expected 8 columns (timestamp tx ty tz qx qy qz qw), found " +
+                  std::to_string(tokens.size()));
+    }
+    static const char* kNames[] = {"timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw"};
+    double v[8];
+    for (int k = 0; k < 8; ++k) v[k] = ParseDouble(tokens[k], path, line, kNames[k]);
+    Eigen::Quaterniond q(v[7], v[4], v[5], v[6]);
+    const double norm = q.norm();
+    if (std::abs(norm - 1.0) > options.quaternion_norm_tolerance) {
+      throw Error(Where(path, line) + "quaternion norm is " + std::to_string(norm) +
+                  ", not 1 (is the column order qx qy qz qw?)");
+    }
+    q.normalize();
+    if (!trajectory.empty() && v[0] <= trajectory.back().timestamp) {
+      throw Error(Where(path, line) + "timestamp " + tokens[0] +
+                  " does not increase over the line before");
+    }
+    StampedPose pose;
+    pose.timestamp = v[0];
+    pose.T_world_camera.linear() = q.toRotationMatrix();
+    pose.T_world_camera.translation() = Eigen::Vector3d(v[1], v[2], v[3]);
+    trajectory.push_back(pose);
+  });
+  return trajectory;
+}
+
+void WriteTumTrajectory(const std::filesystem::path& path, const Trajectory& trajectory) {
+  WriteFileAtomically(path, [&](std::ostream& out) {
+    out << "# timestamp tx ty tz qx qy qz qw\n";
+    char buffer[256];
+    for (const StampedPose& pose : trajectory) {
+      const Eigen::Quaterniond q(pose.T_world_camera.rotation());
+      const Eigen::Vector3d t = pose.T_world_camera.translation();
+      std::snprintf(buffer, sizeof(buffer), "%.6f %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n",
+                    pose.timestamp, t.x(), t.y(), t.z(), q.x(), q.y(), q.z(), q.w());
+      out << buffer;
+    }
+  });
+}
+
+void WriteKittiTrajectory(const std::filesystem::path& path, const Trajectory& trajectory) {
+  WriteFileAtomically(path, [&](std::ostream& out) {
+    char buffer[64];
+    for (const StampedPose& pose : trajectory) {
+      const Eigen::Matrix<double, 3, 4> m = pose.T_world_camera.matrix().topRows<3>();
+      for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 4; ++c) {
+          std::snprintf(buffer, sizeof(buffer), "%.9e", m(r, c));
+          out << buffer << (r == 2 && c == 3 ? '\n' : ' ');
+        }
+      }
+    }
+  });
+}
+
+}  // namespace sdoslam

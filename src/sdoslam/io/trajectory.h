@@ -1,0 +1,37 @@
+#pragma once
+
+#include <Eigen/Geometry>
+#include <filesystem>
+#include <vector>
+
+namespace sdoslam {
+
+// A camera pose at a time: T_world_camera maps points from the camera frame to the world frame
+// (the TUM convention: translation is the camera centre in the world).
+struct StampedPose {
+  double timestamp = 0.0;  // seconds
+  Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
+};
+
+using Trajectory = std::vector<StampedPose>;
+
+struct TrajectoryReadOptions {
+  // Quaternions whose norm differs from 1 by less than this are normalised; larger deviations
+  // are errors (they mean a broken writer, not rounding).
+  double quaternion_norm_tolerance = 1e-2;
+};
+
+// Reads a TUM trajectory (`timestamp tx ty tz qx qy qz qw`, '#' comments). Throws Error naming
+// file and line for a wrong column count, a non-number or NaN, a bad quaternion, or timestamps
+// that do not increase.
+Trajectory ReadTumTrajectory(const std::filesystem::path& path,
+                             const TrajectoryReadOptions& options = {});
+
+// Writes TUM format, timestamps with microsecond precision; atomically (see atomic_file.h).
+void WriteTumTrajectory(const std::filesystem::path& path, const Trajectory& trajectory);
+
+// Writes KITTI format: the 3x4 matrix [R|t] of each pose, row-major, one pose a line.
+// (KITTI has no timestamps; write TUM alongside when they matter.)
+void WriteKittiTrajectory(const std::filesystem::path& path, const Trajectory& trajectory);
+
+}  // namespace sdoslam
