@@ -70,7 +70,8 @@ void RunEval(const EvalArgs& args) {
   if (!args.json.empty()) {
     nlohmann::json j = ToJson(evaluations, options);
     j["ground_truth"] = args.ground_truth;
-    for (size_t k = 0; k < args.estimates.size(); ++k) j["estimates"][k]["file"] = args.estimates[k];
+    for (size_t k = 0; k < args.estimates.size(); ++k)
+      j["estimates"][k]["file"] = args.estimates[k];
     WriteFileAtomically(args.json, [&](std::ostream& out) { out << j.dump(2) << '\n'; });
     std::cout << "wrote " << args.json << '\n';
   }
@@ -86,8 +87,7 @@ void AddEvalCommand(CLI::App& app) {
   auto args = std::make_shared<EvalArgs>();
   CLI::App* cmd = app.add_subcommand(
       "eval", "ATE and RTE of estimated trajectories against ground truth (TUM format)");
-  cmd->add_option("--gt", args->ground_truth, "ground-truth trajectory (TUM format)")
-      ->required();
+  cmd->add_option("--gt", args->ground_truth, "ground-truth trajectory (TUM format)")->required();
   cmd->add_option("--est", args->estimates,
                   "estimated trajectory (TUM format); repeat to compare several")
       ->required();

@@ -7,6 +7,7 @@
 
 #include "sdoslam/apps/demo_command.h"
 #include "sdoslam/apps/eval_command.h"
+#include "sdoslam/apps/synth_command.h"
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/logging.h"
 
@@ -19,6 +20,7 @@ int main(int argc, char** argv) {
   app.parse_complete_callback([&] { sdoslam::SetLogLevel(log_level); });
   sdoslam::AddEvalCommand(app);
   sdoslam::AddDemoCommand(app);
+  sdoslam::AddSynthCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

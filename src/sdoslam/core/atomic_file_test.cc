@@ -44,8 +44,9 @@ TEST(AtomicFile, PathWriterKeepsExtensionAndReportsFailure) {
   });
   EXPECT_EQ(seen.extension(), ".png");
   EXPECT_EQ(testing::ReadText(path), "png");
-  EXPECT_THROW(WriteFileAtomically(dir / "x.png", [](const std::filesystem::path&) { return false; }),
-               Error);
+  EXPECT_THROW(
+      WriteFileAtomically(dir / "x.png", [](const std::filesystem::path&) { return false; }),
+      Error);
   EXPECT_FALSE(std::filesystem::exists(dir / "x.png"));
 }
 

@@ -17,16 +17,18 @@ void Require(bool ok, const std::string& field, const std::string& why) {
 }  // namespace
 
 void CameraOptions::Check() const {
-  Require(width > 0 && width <= 16384, "width", "must be in 1..16384, got " + std::to_string(width));
+  Require(width > 0 && width <= 16384, "width",
+          "must be in 1..16384, got " + std::to_string(width));
   Require(height > 0 && height <= 16384, "height",
           "must be in 1..16384, got " + std::to_string(height));
   Require(std::isfinite(fx) && fx > 0, "fx", "focal length must be positive");
   Require(std::isfinite(fy) && fy > 0, "fy", "focal length must be positive");
-  Require(std::isfinite(cx) && cx >= 0 && cx <= width, "cx", "principal point must lie in the image");
+  Require(std::isfinite(cx) && cx >= 0 && cx <= width, "cx",
+          "principal point must lie in the image");
   Require(std::isfinite(cy) && cy >= 0 && cy <= height, "cy",
           "principal point must lie in the image");
-  for (const auto& [name, value] : {std::pair{"k1", k1}, {"k2", k2}, {"p1", p1}, {"p2", p2},
-                                    {"k3", k3}}) {
+  for (const auto& [name, value] :
+       {std::pair{"k1", k1}, {"k2", k2}, {"p1", p1}, {"p2", p2}, {"k3", k3}}) {
     Require(std::isfinite(value), name, "must be finite");
   }
   Require(std::isfinite(fps) && fps > 0, "fps", "must be positive");
@@ -75,11 +77,19 @@ void WriteCameraOptions(const CameraOptions& o, YAML::Emitter* out) {
   y << YAML::Key << "width" << YAML::Value << o.width;
   y << YAML::Key << "height" << YAML::Value << o.height;
   y << YAML::Precision(17);
-  for (const auto& [key, value] :
-       {std::pair{"fx", o.fx}, {"fy", o.fy}, {"cx", o.cx}, {"cy", o.cy}, {"k1", o.k1},
-        {"k2", o.k2}, {"p1", o.p1}, {"p2", o.p2}, {"k3", o.k3}, {"fps", o.fps},
-        {"depth_factor", o.depth_factor}, {"depth_min", o.depth_min},
-        {"depth_max", o.depth_max}}) {
+  for (const auto& [key, value] : {std::pair{"fx", o.fx},
+                                   {"fy", o.fy},
+                                   {"cx", o.cx},
+                                   {"cy", o.cy},
+                                   {"k1", o.k1},
+                                   {"k2", o.k2},
+                                   {"p1", o.p1},
+                                   {"p2", o.p2},
+                                   {"k3", o.k3},
+                                   {"fps", o.fps},
+                                   {"depth_factor", o.depth_factor},
+                                   {"depth_min", o.depth_min},
+                                   {"depth_max", o.depth_max}}) {
     y << YAML::Key << key << YAML::Value << value;
   }
   y << YAML::EndMap;
@@ -95,8 +105,8 @@ CameraOptions LoadCameraConfig(const std::filesystem::path& path) {
 
 Camera::Camera(const CameraOptions& options) : options_(options) {
   options_.Check();
-  has_distortion_ = options_.k1 != 0 || options_.k2 != 0 || options_.p1 != 0 ||
-                    options_.p2 != 0 || options_.k3 != 0;
+  has_distortion_ = options_.k1 != 0 || options_.k2 != 0 || options_.p1 != 0 || options_.p2 != 0 ||
+                    options_.k3 != 0;
 }
 
 Eigen::Vector2d Camera::Project(const Eigen::Vector3d& p) const {

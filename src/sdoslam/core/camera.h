@@ -29,9 +29,9 @@ struct CameraOptions {
   double p1 = 0.0;
   double p2 = 0.0;
   double k3 = 0.0;
-  double fps = 30.0;            // nominal frame rate
+  double fps = 30.0;             // nominal frame rate
   double depth_factor = 5000.0;  // raw 16-bit depth units per metre
-  double depth_min = 0.1;       // depth outside [depth_min, depth_max] metres counts as missing
+  double depth_min = 0.1;        // depth outside [depth_min, depth_max] metres counts as missing
   double depth_max = 10.0;
 
   // Throws Error naming the first impossible field.

@@ -46,8 +46,8 @@ TEST(Camera, UndistortInvertsDistortAcrossTheImage) {
   ASSERT_EQ(undistorted.size(), truth.size());
   double worst = 0;
   for (size_t k = 0; k < truth.size(); ++k) {
-    worst = std::max(worst, std::hypot(undistorted[k].x - truth[k].x(),
-                                       undistorted[k].y - truth[k].y()));
+    worst = std::max(worst,
+                     std::hypot(undistorted[k].x - truth[k].x(), undistorted[k].y - truth[k].y()));
   }
   EXPECT_LT(worst, 2e-3);  // float storage limits this, not the iteration
   // The distortion is real: near the corner it moves pixels by several pixels.

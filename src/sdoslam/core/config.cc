@@ -21,7 +21,8 @@ YAML::Node ParseRoot(const std::string& text, const std::string& origin) {
 }  // namespace
 
 ConfigMap ConfigMap::LoadFile(const std::filesystem::path& path) {
-  if (!std::filesystem::is_regular_file(path)) throw Error("config file not found: " + path.string());
+  if (!std::filesystem::is_regular_file(path))
+    throw Error("config file not found: " + path.string());
   std::ifstream in(path);
   if (!in) throw Error("cannot read config file " + path.string());
   std::stringstream text;

@@ -51,10 +51,12 @@ TEST(ConfigMap, WrongTypesAndBadYamlAreReportedWithLine) {
   EXPECT_EQ(MessageOf([&] { root.Read("width", &width); }),
             "c.yaml:2: width: cannot read 'wide' as an integer");
   double value = 0;
-  EXPECT_EQ(MessageOf([&] { root.Read("list", &value); }), "c.yaml:3: list: expected a single value");
+  EXPECT_EQ(MessageOf([&] { root.Read("list", &value); }),
+            "c.yaml:3: list: expected a single value");
   EXPECT_EQ(MessageOf([&] { root.Section("n"); }), "c.yaml:1: n: expected a mapping of settings");
-  EXPECT_NE(MessageOf([] { ConfigMap::LoadString("a: [1, 2\nb: 3\n", "bad.yaml"); }).find("bad.yaml:"),
-            std::string::npos);
+  EXPECT_NE(
+      MessageOf([] { ConfigMap::LoadString("a: [1, 2\nb: 3\n", "bad.yaml"); }).find("bad.yaml:"),
+      std::string::npos);
   EXPECT_NE(MessageOf([] { ConfigMap::LoadString("- 1\n- 2\n", "seq.yaml"); }).find("mapping"),
             std::string::npos);
 }

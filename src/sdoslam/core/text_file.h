@@ -11,9 +11,9 @@ namespace sdoslam {
 // (the TUM file lists and trajectories). Blank lines and lines starting with '#' are skipped;
 // line numbers are 1-based so that messages match what an editor shows.
 // Throws Error naming the file when it cannot be opened.
-void ForEachDataLine(const std::filesystem::path& path,
-                     const std::function<void(int line_number,
-                                              const std::vector<std::string>& tokens)>& on_line);
+void ForEachDataLine(
+    const std::filesystem::path& path,
+    const std::function<void(int line_number, const std::vector<std::string>& tokens)>& on_line);
 
 // Parses a finite double; throws Error("<file>:<line>: <what> ...") otherwise.
 double ParseDouble(const std::string& token, const std::filesystem::path& path, int line_number,

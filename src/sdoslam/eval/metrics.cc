@@ -55,9 +55,12 @@ AlignmentMode ParseAlignmentMode(const std::string& name) {
 
 std::string ToString(AlignmentMode mode) {
   switch (mode) {
-    case AlignmentMode::kSE3: return "se3";
-    case AlignmentMode::kSim3: return "sim3";
-    case AlignmentMode::kNone: return "none";
+    case AlignmentMode::kSE3:
+      return "se3";
+    case AlignmentMode::kSim3:
+      return "sim3";
+    case AlignmentMode::kNone:
+      return "none";
   }
   return "?";
 }
@@ -101,10 +104,9 @@ TrajectoryMatch MatchTrajectories(const Trajectory& ground_truth, const Trajecto
     match.estimate_index.push_back(est);
   }
   if (match.size() == 0) {
-    throw Error("no timestamps of the estimate " + TimeRange(estimate) +
-                " lie within " + std::to_string(max_time_difference) +
-                " s of the ground truth " + TimeRange(ground_truth) +
-                " (wrong files, or a time offset?)");
+    throw Error("no timestamps of the estimate " + TimeRange(estimate) + " lie within " +
+                std::to_string(max_time_difference) + " s of the ground truth " +
+                TimeRange(ground_truth) + " (wrong files, or a time offset?)");
   }
   if (match.size() < 3) {
     throw Error("only " + std::to_string(match.size()) +
@@ -117,8 +119,8 @@ AteResult ComputeAte(const Trajectory& ground_truth, const Trajectory& estimate,
                      const AteOptions& options) {
   options.Check();
   AteResult result;
-  result.match = MatchTrajectories(ground_truth, estimate, options.max_time_difference,
-                                   options.time_offset);
+  result.match =
+      MatchTrajectories(ground_truth, estimate, options.max_time_difference, options.time_offset);
   std::vector<Eigen::Vector3d> est;
   for (size_t k = 0; k < result.match.size(); ++k) {
     const StampedPose& gt = ground_truth[result.match.ground_truth_index[k]];
@@ -153,8 +155,8 @@ void RteOptions::Check() const {
 RteResult ComputeRte(const Trajectory& ground_truth, const Trajectory& estimate,
                      const RteOptions& options) {
   options.Check();
-  const TrajectoryMatch match = MatchTrajectories(ground_truth, estimate,
-                                                  options.max_time_difference, options.time_offset);
+  const TrajectoryMatch match =
+      MatchTrajectories(ground_truth, estimate, options.max_time_difference, options.time_offset);
   const size_t n = match.size();
   auto est_pose = [&](size_t k) { return estimate[match.estimate_index[k]]; };
   auto gt_pose = [&](size_t k) { return ground_truth[match.ground_truth_index[k]]; };
@@ -170,8 +172,8 @@ RteResult ComputeRte(const Trajectory& ground_truth, const Trajectory& estimate,
     const double tolerance = 0.5 * ComputeErrorStats(intervals).median + 1e-9;
     for (size_t i = 0; i < n; ++i) {
       const double target = times[i] + options.delta;
-      const size_t hi = static_cast<size_t>(std::lower_bound(times.begin(), times.end(), target) -
-                                            times.begin());
+      const size_t hi =
+          static_cast<size_t>(std::lower_bound(times.begin(), times.end(), target) - times.begin());
       size_t j = hi;
       if (hi == n || (hi > 0 && target - times[hi - 1] < times[hi] - target)) j = hi - 1;
       if (j > i && std::abs(times[j] - target) <= tolerance) pairs.emplace_back(i, j);
@@ -188,12 +190,14 @@ RteResult ComputeRte(const Trajectory& ground_truth, const Trajectory& estimate,
     Eigen::Isometry3d est_motion =
         est_pose(i).T_world_camera.inverse() * est_pose(j).T_world_camera;
     est_motion.translation() *= options.scale;
-    const Eigen::Isometry3d gt_motion = gt_pose(i).T_world_camera.inverse() * gt_pose(j).T_world_camera;
+    const Eigen::Isometry3d gt_motion =
+        gt_pose(i).T_world_camera.inverse() * gt_pose(j).T_world_camera;
     const Eigen::Isometry3d error = est_motion.inverse() * gt_motion;
     result.timestamps.push_back(est_pose(i).timestamp);
     result.translation_errors.push_back(error.translation().norm());
     // AngleAxis is accurate for small angles, where arccos((tr R − 1)/2) loses digits.
-    result.rotation_errors_deg.push_back(Eigen::AngleAxisd(error.rotation()).angle() * 180.0 / M_PI);
+    result.rotation_errors_deg.push_back(Eigen::AngleAxisd(error.rotation()).angle() * 180.0 /
+                                         M_PI);
   }
   result.translation = ComputeErrorStats(result.translation_errors);
   result.rotation = ComputeErrorStats(result.rotation_errors_deg);

@@ -28,7 +28,9 @@ struct Similarity {
   double scale = 1.0;
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();
-  Eigen::Vector3d Apply(const Eigen::Vector3d& p) const { return scale * rotation * p + translation; }
+  Eigen::Vector3d Apply(const Eigen::Vector3d& p) const {
+    return scale * rotation * p + translation;
+  }
 };
 
 // Closed-form least-squares alignment of corresponding positions (Umeyama 1991; without scale it
@@ -80,8 +82,8 @@ struct RteOptions {
 };
 
 struct RteResult {
-  ErrorStats translation;  // metres
-  ErrorStats rotation;     // degrees
+  ErrorStats translation;          // metres
+  ErrorStats rotation;             // degrees
   std::vector<double> timestamps;  // estimate time of each pair's start
   std::vector<double> translation_errors, rotation_errors_deg;
 };

@@ -23,9 +23,9 @@ Trajectory WavyTrajectory(int n, double t0 = 100.0) {
   Trajectory t;
   for (int k = 0; k < n; ++k) {
     const double s = k / 30.0;
-    t.push_back(Pose(t0 + s, {std::sin(s), 0.5 * std::cos(0.7 * s), 0.2 * s},
-                     Eigen::AngleAxisd(0.3 * s, Eigen::Vector3d(0.2, 1, 0.1).normalized())
-                         .toRotationMatrix()));
+    t.push_back(Pose(
+        t0 + s, {std::sin(s), 0.5 * std::cos(0.7 * s), 0.2 * s},
+        Eigen::AngleAxisd(0.3 * s, Eigen::Vector3d(0.2, 1, 0.1).normalized()).toRotationMatrix()));
   }
   return t;
 }
@@ -107,13 +107,15 @@ TEST(Ate, AlignmentIsTheLeastSquaresOptimum) {
   Trajectory est = Transformed(gt, T);
   std::mt19937 rng(3);
   std::normal_distribution<double> noise(0.0, 0.02);
-  for (auto& p : est) p.T_world_camera.translation() += Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+  for (auto& p : est)
+    p.T_world_camera.translation() += Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
   const AteResult ate = ComputeAte(gt, est);
   // The true inverse transform is a feasible alignment, so the optimum cannot be worse...
   double true_sq = 0;
   for (size_t k = 0; k < gt.size(); ++k) {
-    true_sq += (T.inverse() * est[k].T_world_camera.translation() - gt[k].T_world_camera.translation())
-                   .squaredNorm();
+    true_sq +=
+        (T.inverse() * est[k].T_world_camera.translation() - gt[k].T_world_camera.translation())
+            .squaredNorm();
   }
   EXPECT_LE(ate.translation.rmse, std::sqrt(true_sq / gt.size()) + 1e-12);
   // ...and any perturbation of the optimum is worse.
@@ -209,8 +211,10 @@ TEST(Rte, RotationRateErrorGivesKnownAngleAndIgnoresGlobalFrame) {
   Trajectory gt, est;
   for (int k = 0; k < 60; ++k) {
     const double t = k / 30.0;
-    gt.push_back(Pose(t, {1, 2, 3}, Eigen::AngleAxisd(0.2 * t, Eigen::Vector3d::UnitY()).toRotationMatrix()));
-    est.push_back(Pose(t, {1, 2, 3}, Eigen::AngleAxisd(0.25 * t, Eigen::Vector3d::UnitY()).toRotationMatrix()));
+    gt.push_back(Pose(t, {1, 2, 3},
+                      Eigen::AngleAxisd(0.2 * t, Eigen::Vector3d::UnitY()).toRotationMatrix()));
+    est.push_back(Pose(t, {1, 2, 3},
+                       Eigen::AngleAxisd(0.25 * t, Eigen::Vector3d::UnitY()).toRotationMatrix()));
   }
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.linear() = Eigen::AngleAxisd(2.0, Eigen::Vector3d(1, 1, 0).normalized()).toRotationMatrix();

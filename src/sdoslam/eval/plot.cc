@@ -34,7 +34,8 @@ class PngCanvas : public Canvas {
     std::vector<cv::Point> p;
     constexpr int kShift = 4;  // sub-pixel precision for anti-aliased lines
     for (const auto& q : points) p.emplace_back(cvRound(q.x * 16), cvRound(q.y * 16));
-    cv::polylines(image_, p, false, Bgr(rgb), std::max(1, static_cast<int>(width)), cv::LINE_AA, kShift);
+    cv::polylines(image_, p, false, Bgr(rgb), std::max(1, static_cast<int>(width)), cv::LINE_AA,
+                  kShift);
   }
   void Text(cv::Point2d at, const std::string& text, double size, Anchor anchor,
             bool vertical) override {
@@ -47,14 +48,17 @@ class PngCanvas : public Canvas {
                   cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
       return;
     }
-    cv::Mat strip(extent.height + baseline + 2, extent.width + 2, CV_8UC3, cv::Scalar(255, 255, 255));
+    cv::Mat strip(extent.height + baseline + 2, extent.width + 2, CV_8UC3,
+                  cv::Scalar(255, 255, 255));
     cv::putText(strip, text, cv::Point(1, extent.height + 1), cv::FONT_HERSHEY_SIMPLEX, scale,
                 cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
     cv::rotate(strip, strip, cv::ROTATE_90_COUNTERCLOCKWISE);
     const int x = cvRound(at.x - strip.cols);
     const int y = cvRound(at.y - (1.0 - shift) * strip.rows);
-    const cv::Rect roi = cv::Rect(x, y, strip.cols, strip.rows) & cv::Rect(0, 0, image_.cols, image_.rows);
-    if (roi.area() > 0) strip(cv::Rect(roi.x - x, roi.y - y, roi.width, roi.height)).copyTo(image_(roi));
+    const cv::Rect roi =
+        cv::Rect(x, y, strip.cols, strip.rows) & cv::Rect(0, 0, image_.cols, image_.rows);
+    if (roi.area() > 0)
+      strip(cv::Rect(roi.x - x, roi.y - y, roi.width, roi.height)).copyTo(image_(roi));
   }
   double TextWidth(const std::string& text, double size) const override {
     int baseline = 0;
@@ -64,7 +68,9 @@ class PngCanvas : public Canvas {
 
  private:
   static double FontScale(double size) { return size / 40.0; }
-  static cv::Scalar Bgr(unsigned rgb) { return cv::Scalar(rgb & 0xff, (rgb >> 8) & 0xff, (rgb >> 16) & 0xff); }
+  static cv::Scalar Bgr(unsigned rgb) {
+    return cv::Scalar(rgb & 0xff, (rgb >> 8) & 0xff, (rgb >> 16) & 0xff);
+  }
   cv::Mat image_;
 };
 
@@ -72,21 +78,27 @@ class SvgCanvas : public Canvas {
  public:
   SvgCanvas(int w, int h) {
     out_ << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << w << "\" height=\"" << h
-         << "\" viewBox=\"0 0 " << w << ' ' << h << "\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
+         << "\" viewBox=\"0 0 " << w << ' ' << h
+         << "\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
   }
   void Line(const std::vector<cv::Point2d>& points, unsigned rgb, double width) override {
     char colour[8];
     std::snprintf(colour, sizeof(colour), "#%06x", rgb & 0xffffff);
-    out_ << "<polyline fill=\"none\" stroke=\"" << colour << "\" stroke-width=\"" << width << "\" points=\"";
+    out_ << "<polyline fill=\"none\" stroke=\"" << colour << "\" stroke-width=\"" << width
+         << "\" points=\"";
     for (const auto& p : points) out_ << Number(p.x) << ',' << Number(p.y) << ' ';
     out_ << "\"/>\n";
   }
   void Text(cv::Point2d at, const std::string& text, double size, Anchor anchor,
             bool vertical) override {
-    const char* a = anchor == Anchor::kLeft ? "start" : anchor == Anchor::kCentre ? "middle" : "end";
-    out_ << "<text x=\"" << Number(at.x) << "\" y=\"" << Number(at.y) << "\" font-family=\"sans-serif\" font-size=\""
-         << Number(size * 0.7) << "\" text-anchor=\"" << a << '"';
-    if (vertical) out_ << " transform=\"rotate(-90 " << Number(at.x) << ' ' << Number(at.y) << ")\"";
+    const char* a = anchor == Anchor::kLeft     ? "start"
+                    : anchor == Anchor::kCentre ? "middle"
+                                                : "end";
+    out_ << "<text x=\"" << Number(at.x) << "\" y=\"" << Number(at.y)
+         << "\" font-family=\"sans-serif\" font-size=\"" << Number(size * 0.7)
+         << "\" text-anchor=\"" << a << '"';
+    if (vertical)
+      out_ << " transform=\"rotate(-90 " << Number(at.x) << ' ' << Number(at.y) << ")\"";
     out_ << '>' << Escape(text) << "</text>\n";
   }
   double TextWidth(const std::string& text, double size) const override {
@@ -103,10 +115,14 @@ class SvgCanvas : public Canvas {
   static std::string Escape(const std::string& s) {
     std::string r;
     for (char c : s) {
-      if (c == '<') r += "&lt;";
-      else if (c == '>') r += "&gt;";
-      else if (c == '&') r += "&amp;";
-      else r += c;
+      if (c == '<')
+        r += "&lt;";
+      else if (c == '>')
+        r += "&gt;";
+      else if (c == '&')
+        r += "&amp;";
+      else
+        r += c;
     }
     return r;
   }
@@ -163,12 +179,14 @@ void Draw(const Plot& plot, Canvas& canvas, int width, int height) {
   for (double x : xt) {
     const double px = to_px({x, y0}).x;
     canvas.Line({{px, top}, {px, bottom}}, kGrid, 1);
-    canvas.Text({px, bottom + 22}, TickLabel(x, xt.size() > 1 ? xt[1] - xt[0] : 1), 18, Anchor::kCentre);
+    canvas.Text({px, bottom + 22}, TickLabel(x, xt.size() > 1 ? xt[1] - xt[0] : 1), 18,
+                Anchor::kCentre);
   }
   for (double y : yt) {
     const double py = to_px({x0, y}).y;
     canvas.Line({{left, py}, {right, py}}, kGrid, 1);
-    canvas.Text({left - 8, py + 6}, TickLabel(y, yt.size() > 1 ? yt[1] - yt[0] : 1), 18, Anchor::kRight);
+    canvas.Text({left - 8, py + 6}, TickLabel(y, yt.size() > 1 ? yt[1] - yt[0] : 1), 18,
+                Anchor::kRight);
   }
   canvas.Line({{left, top}, {left, bottom}, {right, bottom}, {right, top}, {left, top}}, kAxis, 1);
   canvas.Text({0.5 * (left + right), 30}, plot.title, 24, Anchor::kCentre);
@@ -188,7 +206,8 @@ void Draw(const Plot& plot, Canvas& canvas, int width, int height) {
     }
   }
   double legend_width = 0;
-  for (const auto& s : plot.series) legend_width = std::max(legend_width, canvas.TextWidth(s.label, 18));
+  for (const auto& s : plot.series)
+    legend_width = std::max(legend_width, canvas.TextWidth(s.label, 18));
   const double text_x = right - 10 - legend_width;
   double ly = top + 22;
   for (const auto& s : plot.series) {

@@ -11,11 +11,11 @@ namespace sdoslam {
 // file extension. Hand-written because Debian offers no small, well-kept C++ plotting library;
 // the evaluation needs only lines, segments, axes with ticks and a legend.
 struct PlotSeries {
-  std::string label;                  // shown in the legend when not empty
+  std::string label;  // shown in the legend when not empty
   std::vector<Eigen::Vector2d> points;
-  unsigned rgb = 0x1f77b4;            // colour as 0xRRGGBB
+  unsigned rgb = 0x1f77b4;  // colour as 0xRRGGBB
   double line_width = 1.5;
-  bool as_segments = false;           // points are pairs (p0 p1 p2 p3 ...) of separate segments
+  bool as_segments = false;  // points are pairs (p0 p1 p2 p3 ...) of separate segments
 };
 
 struct Plot {

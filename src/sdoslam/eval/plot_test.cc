@@ -11,7 +11,8 @@ namespace sdoslam {
 namespace {
 
 TEST(NiceTicks, UsesOneTwoFiveSteps) {
-  EXPECT_EQ(NiceTicks(0.0, 1.0, 5), (std::vector<double>{0.0, 0.2, 0.4, 0.6000000000000001, 0.8, 1.0}));
+  EXPECT_EQ(NiceTicks(0.0, 1.0, 5),
+            (std::vector<double>{0.0, 0.2, 0.4, 0.6000000000000001, 0.8, 1.0}));
   const auto t = NiceTicks(-3.3, 7.9, 6);
   ASSERT_GE(t.size(), 2u);
   EXPECT_DOUBLE_EQ(t[1] - t[0], 2.0);

@@ -31,7 +31,8 @@ std::array<int, 2> PlaneAxes(const std::string& plane, const std::vector<Eigen::
 
 std::string FileSafe(const std::string& label) {
   std::string s;
-  for (char c : label) s += (std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '.') ? c : '_';
+  for (char c : label)
+    s += (std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '.') ? c : '_';
   return s.empty() ? "estimate" : s;
 }
 
@@ -77,8 +78,8 @@ std::string FormatTable(const std::vector<EstimateEvaluation>& evaluations,
                         const EvaluationOptions& options) {
   size_t label_width = 8;
   for (const auto& e : evaluations) label_width = std::max(label_width, e.label.size());
-  const std::string delta = fmt::format("{:g}{}", options.rte.delta,
-                                        options.rte.unit == DeltaUnit::kFrames ? "f" : "s");
+  const std::string delta =
+      fmt::format("{:g}{}", options.rte.delta, options.rte.unit == DeltaUnit::kFrames ? "f" : "s");
   std::string out = fmt::format(
       "ATE (align {}) in metres; RTE over {} (trans m / rot deg)\n{:<{}} {:>7} {:>9} {:>9} {:>9} "
       "{:>9} {:>9} {:>9} {:>10} {:>10} {:>6}\n",
@@ -86,8 +87,9 @@ std::string FormatTable(const std::vector<EstimateEvaluation>& evaluations,
       "mean", "median", "std", "min", "max", "RTE trans", "RTE rot", "pairs");
   for (const auto& e : evaluations) {
     const ErrorStats& s = e.ate.translation;
-    out += fmt::format("{:<{}} {:>7} {:>9.4f} {:>9.4f} {:>9.4f} {:>9.4f} {:>9.4f} {:>9.4f} ",
-                       e.label, label_width, s.count, s.rmse, s.mean, s.median, s.std, s.min, s.max);
+    out +=
+        fmt::format("{:<{}} {:>7} {:>9.4f} {:>9.4f} {:>9.4f} {:>9.4f} {:>9.4f} {:>9.4f} ", e.label,
+                    label_width, s.count, s.rmse, s.mean, s.median, s.std, s.min, s.max);
     if (e.rte) {
       out += fmt::format("{:>10.4f} {:>10.3f} {:>6}\n", e.rte->translation.rmse,
                          e.rte->rotation.rmse, e.rte->translation.count);
@@ -112,7 +114,8 @@ nlohmann::json ToJson(const std::vector<EstimateEvaluation>& evaluations,
   for (const auto& e : evaluations) {
     const Similarity& a = e.ate.alignment;
     nlohmann::json rotation = nlohmann::json::array();
-    for (int r = 0; r < 3; ++r) rotation.push_back({a.rotation(r, 0), a.rotation(r, 1), a.rotation(r, 2)});
+    for (int r = 0; r < 3; ++r)
+      rotation.push_back({a.rotation(r, 0), a.rotation(r, 1), a.rotation(r, 2)});
     nlohmann::json item = {
         {"label", e.label},
         {"estimate_poses", e.estimate_poses},
@@ -147,17 +150,21 @@ std::vector<std::filesystem::path> WriteEvaluationPlots(
   std::vector<std::filesystem::path> written;
   if (evaluations.empty()) return written;
   const char* kAxisNames = "xyz";
-  Plot over_time{"Absolute trajectory error over time", "time since start [s]", "ATE [m]", false, {}};
+  Plot over_time{
+      "Absolute trajectory error over time", "time since start [s]", "ATE [m]", false, {}};
   const double t0 = evaluations.front().ate.timestamps.front();
   for (size_t k = 0; k < evaluations.size(); ++k) {
     const EstimateEvaluation& e = evaluations[k];
     const unsigned colour = kPalette[k % std::size(kPalette)];
     const auto axes = PlaneAxes(options.plane, e.ate.ground_truth);
-    auto project = [&](const Eigen::Vector3d& p) { return Eigen::Vector2d(p[axes[0]], p[axes[1]]); };
+    auto project = [&](const Eigen::Vector3d& p) {
+      return Eigen::Vector2d(p[axes[0]], p[axes[1]]);
+    };
     PlotSeries gt{"ground truth", {}, 0x000000, 1.5, false};
     PlotSeries est{e.label, {}, colour, 1.5, false};
     PlotSeries errors{"error", {}, 0xaaaaaa, 1.0, true};
-    const size_t step = std::max<size_t>(1, e.ate.ground_truth.size() / 400);  // keep plots readable
+    const size_t step =
+        std::max<size_t>(1, e.ate.ground_truth.size() / 400);  // keep plots readable
     for (size_t i = 0; i < e.ate.ground_truth.size(); ++i) {
       gt.points.push_back(project(e.ate.ground_truth[i]));
       est.points.push_back(project(e.ate.estimate_aligned[i]));
@@ -167,8 +174,10 @@ std::vector<std::filesystem::path> WriteEvaluationPlots(
       }
     }
     Plot top{fmt::format("{}: top view, ATE RMSE {:.4f} m", e.label, e.ate.translation.rmse),
-             fmt::format("{} [m]", kAxisNames[axes[0]]), fmt::format("{} [m]", kAxisNames[axes[1]]),
-             true, {errors, gt, est}};
+             fmt::format("{} [m]", kAxisNames[axes[0]]),
+             fmt::format("{} [m]", kAxisNames[axes[1]]),
+             true,
+             {errors, gt, est}};
     for (const char* ext : {".png", ".svg"}) {
       const auto path = folder / (FileSafe(e.label) + "_top" + ext);
       SavePlot(top, path);

@@ -12,7 +12,8 @@ Trajectory Line(double speed, int n) {
   for (int k = 0; k < n; ++k) {
     StampedPose p;
     p.timestamp = k / 30.0;
-    p.T_world_camera.translation() = Eigen::Vector3d(speed * p.timestamp, 0.1 * std::sin(p.timestamp), 0);
+    p.T_world_camera.translation() =
+        Eigen::Vector3d(speed * p.timestamp, 0.1 * std::sin(p.timestamp), 0);
     t.push_back(p);
   }
   return t;

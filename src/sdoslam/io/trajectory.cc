@@ -14,7 +14,8 @@ Trajectory ReadTumTrajectory(const std::filesystem::path& path,
   Trajectory trajectory;
   ForEachDataLine(path, [&](int line, const std::vector<std::string>& tokens) {
     if (tokens.size() != 8) {
-      throw Error(Where(path, line) + "expected 8 columns (timestamp tx ty tz qx qy qz qw), found " +
+      throw Error(Where(path, line) +
+                  "expected 8 columns (timestamp tx ty tz qx qy qz qw), found " +
                   std::to_string(tokens.size()));
     }
     static const char* kNames[] = {"timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw"};

@@ -53,7 +53,8 @@ TEST(Trajectory, BadRowsAreRejectedWithFileAndLine) {
   testing::TempDir dir;
   const auto path = dir / "bad.txt";
   testing::WriteText(path, "1.0 0 0 0 0 0 0 1\n2.0 0 0 0 0 0 1\n");
-  EXPECT_EQ(ErrorOf(path), path.string() + ":2: expected 8 columns (timestamp tx ty tz qx qy qz qw), found 7");
+  EXPECT_EQ(ErrorOf(path),
+            path.string() + ":2: expected 8 columns (timestamp tx ty tz qx qy qz qw), found 7");
   testing::WriteText(path, "1.0 0 nan 0 0 0 0 1\n");
   EXPECT_NE(ErrorOf(path).find(":1: ty is nan"), std::string::npos);
   testing::WriteText(path, "1.0 0 0 0 0 0 0 2\n");
@@ -66,7 +67,8 @@ TEST(Trajectory, BadRowsAreRejectedWithFileAndLine) {
 TEST(Trajectory, KittiIsRowMajorThreeByFour) {
   testing::TempDir dir;
   StampedPose pose;
-  pose.T_world_camera.linear() = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  pose.T_world_camera.linear() =
+      Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   pose.T_world_camera.translation() = Eigen::Vector3d(4, 5, 6);
   WriteKittiTrajectory(dir / "k.txt", {pose, pose});
   std::istringstream in(testing::ReadText(dir / "k.txt"));

@@ -55,11 +55,12 @@ TumDataset::TumDataset(const std::filesystem::path& folder, const CameraOptions&
     : folder_(folder), camera_(camera) {
   options.Check();
   camera.Check();
-  if (!std::filesystem::is_directory(folder)) throw Error("dataset folder not found: " + folder.string());
+  if (!std::filesystem::is_directory(folder))
+    throw Error("dataset folder not found: " + folder.string());
 
   if (!options.associations.empty()) {
-    const auto path = options.associations.is_absolute() ? options.associations
-                                                         : folder / options.associations;
+    const auto path =
+        options.associations.is_absolute() ? options.associations : folder / options.associations;
     ForEachDataLine(path, [&](int line, const std::vector<std::string>& tokens) {
       if (tokens.size() != 4) {
         throw Error(Where(path, line) + "expected 't_rgb rgb_file t_depth depth_file', found " +
@@ -87,8 +88,8 @@ TumDataset::TumDataset(const std::filesystem::path& folder, const CameraOptions&
     for (const auto& e : depth_list) depth_times.push_back(e.timestamp);
     for (const auto& [i, j] :
          AssociateTimestamps(rgb_times, depth_times, options.max_time_difference)) {
-      entries_.push_back({rgb_list[i].timestamp, depth_list[j].timestamp,
-                          folder / rgb_list[i].file, folder / depth_list[j].file});
+      entries_.push_back({rgb_list[i].timestamp, depth_list[j].timestamp, folder / rgb_list[i].file,
+                          folder / depth_list[j].file});
     }
     if (entries_.empty()) {
       throw Error(folder.string() + ": no rgb/depth pair within " +

@@ -21,7 +21,7 @@ struct RgbdFrame {
 struct RgbdFrameEntry {
   double timestamp = 0.0;
   double depth_timestamp = 0.0;
-  std::filesystem::path rgb_path;    // absolute or relative to the working directory
+  std::filesystem::path rgb_path;  // absolute or relative to the working directory
   std::filesystem::path depth_path;
 };
 

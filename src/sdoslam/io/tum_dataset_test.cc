@@ -30,7 +30,8 @@ void WriteSequence(const std::filesystem::path& dir, int frames) {
     char name[64];
     const double t = 1.0 + 0.1 * k;
     std::snprintf(name, sizeof(name), "%.6f.png", t);
-    cv::imwrite((dir / "rgb" / name).string(), cv::Mat(24, 32, CV_8UC3, cv::Scalar(k, 2 * k, 3 * k)));
+    cv::imwrite((dir / "rgb" / name).string(),
+                cv::Mat(24, 32, CV_8UC3, cv::Scalar(k, 2 * k, 3 * k)));
     rgb_list += std::to_string(t) + " rgb/" + name + "\n";
     std::snprintf(name, sizeof(name), "%.6f.png", t + 0.004);
     cv::Mat depth(24, 32, CV_16UC1, cv::Scalar(5000 + 1000 * k));  // 1.0 m + 0.2 m per frame
@@ -111,15 +112,16 @@ TEST_F(TumDatasetTest, ListedImageThatDoesNotExist) {
 
 TEST_F(TumDatasetTest, MalformedLineNamesFileAndLine) {
   testing::WriteText(dir_ / "rgb.txt", "# x\n1.0 rgb/1.000000.png\n1.1\n");
-  EXPECT_EQ(ErrorOf(), (dir_ / "rgb.txt").string() +
-                           ":3: expected 'timestamp filename', found 1 columns");
+  EXPECT_EQ(ErrorOf(),
+            (dir_ / "rgb.txt").string() + ":3: expected 'timestamp filename', found 1 columns");
   testing::WriteText(dir_ / "rgb.txt", "1.0 rgb/1.000000.png\nabc rgb/1.100000.png\n");
   EXPECT_EQ(ErrorOf(), (dir_ / "rgb.txt").string() + ":2: timestamp 'abc' is not a number");
 }
 
 TEST_F(TumDatasetTest, NonIncreasingTimestamps) {
   testing::WriteText(dir_ / "rgb.txt", "1.1 rgb/1.100000.png\n1.0 rgb/1.000000.png\n");
-  EXPECT_EQ(ErrorOf(), (dir_ / "rgb.txt").string() + ":2: timestamp 1.0 does not increase over the line before");
+  EXPECT_EQ(ErrorOf(), (dir_ / "rgb.txt").string() +
+                           ":2: timestamp 1.0 does not increase over the line before");
 }
 
 TEST_F(TumDatasetTest, EmptySequencesAndEmptyAssociation) {
@@ -134,7 +136,8 @@ TEST_F(TumDatasetTest, EmptySequencesAndEmptyAssociation) {
 
 TEST_F(TumDatasetTest, UndecodableWrongSizeAndEightBitDepth) {
   testing::WriteText(dir_ / "rgb" / "1.000000.png", "not a png");
-  EXPECT_EQ(ErrorOf({}, SmallCamera(), 0), (dir_ / "rgb" / "1.000000.png").string() + ": cannot decode image");
+  EXPECT_EQ(ErrorOf({}, SmallCamera(), 0),
+            (dir_ / "rgb" / "1.000000.png").string() + ": cannot decode image");
   cv::imwrite((dir_ / "rgb" / "1.100000.png").string(), cv::Mat(48, 64, CV_8UC3));
   EXPECT_EQ(ErrorOf({}, SmallCamera(), 1), (dir_ / "rgb" / "1.100000.png").string() +
                                                ": image is 64x48, the camera config says 32x24");

@@ -1,0 +1,94 @@
+#include "sdoslam/apps/synth_command.h"
+
+#include <fmt/format.h>
+
+#include <iostream>
+#include <memory>
+#include <opencv2/imgcodecs.hpp>
+
+#include "sdoslam/core/atomic_file.h"
+#include "sdoslam/core/error.h"
+#include "sdoslam/synth/sequence.h"
+
+namespace sdoslam {
+namespace {
+
+struct SynthArgs {
+  std::string scenario = "walking_xyz";
+  std::string out;
+  std::string motion;
+  int frames = 300;
+  unsigned seed = 1;
+  bool no_noise = false;
+  int motion_blur = 0;
+  bool exposure_changes = false;
+  bool overwrite = false;
+  bool list = false;
+  std::string contact_sheet;
+};
+
+void RunSynth(const SynthArgs& args) {
+  if (args.list) {
+    for (const auto& name : synth::ScenarioNames()) {
+      const synth::Scenario s = synth::MakeScenario(name, 10.0);
+      std::cout << fmt::format("{:<22} camera {:<14} {}\n", name, synth::ToString(s.motion),
+                               s.description);
+    }
+    std::cout << "camera motions (--motion): ";
+    for (const auto& m : synth::CameraMotionNames()) std::cout << m << ' ';
+    std::cout << '\n';
+    return;
+  }
+  if (!args.contact_sheet.empty()) {
+    const cv::Mat sheet = synth::ContactSheet(synth::ScenarioNames(), 9.0);
+    WriteFileAtomically(args.contact_sheet, [&](const std::filesystem::path& tmp) {
+      return cv::imwrite(tmp.string(), sheet);
+    });
+    std::cout << "wrote " << args.contact_sheet << '\n';
+    if (args.out.empty()) return;
+  }
+  if (args.out.empty()) throw Error("--out is required (the folder to write the sequence to)");
+  synth::SynthOptions options;
+  options.scenario = args.scenario;
+  if (!args.motion.empty()) options.motion = synth::ParseCameraMotion(args.motion);
+  options.frames = args.frames;
+  options.seed = args.seed;
+  options.sensor.enabled = !args.no_noise;
+  options.sensor.motion_blur_samples = args.motion_blur;
+  options.sensor.exposure_changes = args.exposure_changes;
+  const synth::SequenceSummary s = synth::WriteSequence(options, args.out, args.overwrite);
+  std::cout << fmt::format(
+      "wrote {} frames of '{}' to {} in {:.1f} s ({:.1f} ms/frame rendering)\n"
+      "moving objects cover {:.0f} % of the image on average, {:.0f} % at most\n",
+      s.frames, args.scenario, args.out, s.total_seconds, 1000.0 * s.render_seconds / s.frames,
+      100.0 * s.dynamic_fraction_mean, 100.0 * s.dynamic_fraction_max);
+}
+
+}  // namespace
+
+void AddSynthCommand(CLI::App& app) {
+  auto args = std::make_shared<SynthArgs>();
+  CLI::App* cmd =
+      app.add_subcommand("synth", "render a synthetic dynamic RGB-D sequence with ground truth");
+  cmd->add_option("--scenario", args->scenario, "scenario name (--list shows them)")
+      ->capture_default_str();
+  cmd->add_option("--out", args->out, "output folder (TUM layout plus masks and detections)");
+  cmd->add_option("--motion", args->motion,
+                  "override the camera motion: static, xyz, rpy, halfsphere, unconstrained, loop");
+  cmd->add_option("--frames", args->frames, "number of frames at 30 Hz")
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
+  cmd->add_option("--seed", args->seed, "seed of the sensor noise")->capture_default_str();
+  cmd->add_flag("--no-noise", args->no_noise,
+                "perfect sensor: no image or depth noise, no missing depth");
+  cmd->add_option("--motion-blur", args->motion_blur, "renderings averaged per frame (0: no blur)")
+      ->check(CLI::Range(0, 64));
+  cmd->add_flag("--exposure-changes", args->exposure_changes, "let the exposure drift");
+  cmd->add_flag("--overwrite", args->overwrite, "replace an existing output folder");
+  cmd->add_flag("--list", args->list, "list the scenarios and camera motions");
+  cmd->add_option("--contact-sheet", args->contact_sheet,
+                  "write a PNG with frames of every scenario");
+  cmd->callback([args] { RunSynth(*args); });
+}
+
+}  // namespace sdoslam

@@ -1,0 +1,135 @@
+#include "sdoslam/synth/renderer.h"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace sdoslam::synth {
+namespace {
+
+struct Candidate {
+  const Primitive* primitive;
+  uint16_t id;
+  cv::Rect screen;  // pixels the primitive may cover
+  Eigen::Isometry3d T_texture_world;
+};
+
+// Conservative screen rectangle of a primitive's bounding sphere: the projection of the
+// sphere's bounding box (x/z is extreme at the box's corners). The whole image when the sphere
+// reaches behind the camera or the lens distorts.
+cv::Rect ScreenBounds(const Primitive& p, const Eigen::Isometry3d& T_camera_world,
+                      const Camera& camera) {
+  const cv::Rect full(0, 0, camera.width(), camera.height());
+  const Eigen::Vector3d c = T_camera_world * p.T_world_primitive.translation();
+  const double r = p.half_size.norm();
+  if (c.z() + r < 0.0) return cv::Rect();
+  if (c.z() - r < 0.05 || camera.HasDistortion()) return full;
+  const double z_near = c.z() - r, z_far = c.z() + r;
+  auto ratio_range = [&](double lo, double hi) {
+    return std::pair{lo < 0 ? lo / z_near : lo / z_far, hi > 0 ? hi / z_near : hi / z_far};
+  };
+  const auto [x0, x1] = ratio_range(c.x() - r, c.x() + r);
+  const auto [y0, y1] = ratio_range(c.y() - r, c.y() + r);
+  const CameraOptions& o = camera.options();
+  auto clamp = [](double value) { return std::clamp(value, -1e6, 1e6); };
+  const cv::Point top_left(static_cast<int>(std::floor(clamp(o.fx * x0 + o.cx))) - 1,
+                           static_cast<int>(std::floor(clamp(o.fy * y0 + o.cy))) - 1);
+  const cv::Point bottom_right(static_cast<int>(std::ceil(clamp(o.fx * x1 + o.cx))) + 2,
+                               static_cast<int>(std::ceil(clamp(o.fy * y1 + o.cy))) + 2);
+  return cv::Rect(top_left, bottom_right) & full;
+}
+
+}  // namespace
+
+RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_world_camera,
+                    const Camera& camera) {
+  const int width = camera.width(), height = camera.height();
+  const Eigen::Isometry3d T_camera_world = T_world_camera.inverse();
+
+  std::vector<Primitive> object_parts;
+  std::vector<uint16_t> object_ids;
+  for (const SceneObject& object : scene.objects) {
+    for (Primitive& part : object.parts_at(t)) {
+      object_parts.push_back(std::move(part));
+      object_ids.push_back(object.id);
+    }
+  }
+  std::vector<Candidate> candidates;
+  for (const Primitive& p : scene.static_parts) {
+    const cv::Rect r = ScreenBounds(p, T_camera_world, camera);
+    if (r.area() > 0) candidates.push_back({&p, 0, r, p.T_world_texture.inverse()});
+  }
+  for (size_t k = 0; k < object_parts.size(); ++k) {
+    const cv::Rect r = ScreenBounds(object_parts[k], T_camera_world, camera);
+    if (r.area() > 0) {
+      candidates.push_back(
+          {&object_parts[k], object_ids[k], r, object_parts[k].T_world_texture.inverse()});
+    }
+  }
+
+  // Ray directions with z = 1 in the camera frame, so a hit's ray parameter is its depth.
+  std::vector<cv::Point2f> pixels;
+  if (camera.HasDistortion()) {
+    pixels.reserve(static_cast<size_t>(width) * height);
+    for (int v = 0; v < height; ++v)
+      for (int u = 0; u < width; ++u)
+        pixels.emplace_back(static_cast<float>(u), static_cast<float>(v));
+    pixels = camera.UndistortPoints(pixels);
+  }
+
+  RenderedView view;
+  view.colour.create(height, width, CV_32FC3);
+  view.depth.create(height, width, CV_32FC1);
+  view.instance.create(height, width, CV_16UC1);
+  const CameraOptions& o = camera.options();
+  const Eigen::Matrix3d R = T_world_camera.linear();
+  const Eigen::Vector3d origin = T_world_camera.translation();
+  const Eigen::Vector3d light = scene.light_direction.normalized();
+
+  tbb::parallel_for(0, height, [&](int v) {
+    auto* colour_row = view.colour.ptr<cv::Vec3f>(v);
+    auto* depth_row = view.depth.ptr<float>(v);
+    auto* id_row = view.instance.ptr<uint16_t>(v);
+    std::vector<const Candidate*> row_candidates;
+    for (const Candidate& c : candidates) {
+      if (v >= c.screen.y && v < c.screen.y + c.screen.height) row_candidates.push_back(&c);
+    }
+    for (int u = 0; u < width; ++u) {
+      double x = (u - o.cx) / o.fx, y = (v - o.cy) / o.fy;
+      if (!pixels.empty()) {
+        const cv::Point2f& q = pixels[static_cast<size_t>(v) * width + u];
+        x = (q.x - o.cx) / o.fx;
+        y = (q.y - o.cy) / o.fy;
+      }
+      const Eigen::Vector3d direction = R * Eigen::Vector3d(x, y, 1.0);
+      Hit best, hit;
+      best.distance = 1e9;
+      const Candidate* best_candidate = nullptr;
+      for (const Candidate* c : row_candidates) {
+        if (u < c->screen.x || u >= c->screen.x + c->screen.width) continue;
+        if (Intersect(*c->primitive, origin, direction, best.distance, &hit)) {
+          best = hit;
+          best_candidate = c;
+        }
+      }
+      if (best_candidate == nullptr) {
+        colour_row[u] = cv::Vec3f(0, 0, 0);
+        depth_row[u] = 0;
+        id_row[u] = 0;
+        continue;
+      }
+      const Primitive& p = *best_candidate->primitive;
+      const Eigen::Vector3f albedo = TextureColour(p.base_colour, p.texture_seed,
+                                                   best_candidate->T_texture_world * best.point);
+      const double lambert = std::max(0.0, best.normal.dot(light));
+      const float shade = static_cast<float>(0.35 + 0.65 * lambert);
+      colour_row[u] = cv::Vec3f(albedo.z() * shade, albedo.y() * shade, albedo.x() * shade);
+      depth_row[u] = static_cast<float>(best.distance);
+      id_row[u] = best_candidate->id;
+    }
+  });
+  return view;
+}
+
+}  // namespace sdoslam::synth

@@ -1,0 +1,23 @@
+#pragma once
+
+#include <opencv2/core.hpp>
+
+#include "sdoslam/core/camera.h"
+#include "sdoslam/synth/scene.h"
+
+namespace sdoslam::synth {
+
+// A noise-free rendering: what a perfect sensor would see.
+struct RenderedView {
+  cv::Mat colour;    // CV_32FC3, BGR, linear in [0, 1], Lambertian shading
+  cv::Mat depth;     // CV_32FC1, metres along the optical axis; 0 where nothing was hit
+  cv::Mat instance;  // CV_16UC1, object id; 0 for the static structure
+};
+
+// Ray-casts `scene` at time t (seconds from the sequence start) through every pixel centre of
+// `camera` placed at T_world_camera. Rows are rendered in parallel; every pixel depends only on
+// the inputs, so the result is the same whatever the number of threads.
+RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_world_camera,
+                    const Camera& camera);
+
+}  // namespace sdoslam::synth

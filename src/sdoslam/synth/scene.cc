@@ -1,0 +1,111 @@
+#include "sdoslam/synth/scene.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace sdoslam::synth {
+namespace {
+
+uint32_t Hash(uint32_t a, uint32_t b, uint32_t c, uint32_t d) {
+  // Integer mixing (after Thomas Wang / murmur finalisers); only needs to look random.
+  uint32_t h = a * 0x9E3779B1u ^ (b + 0x7F4A7C15u) * 0x85EBCA77u;
+  h ^= (c + 0x165667B1u) * 0xC2B2AE3Du;
+  h ^= (d + 0x27D4EB2Fu) * 0x27D4EB2Fu;
+  h ^= h >> 15;
+  h *= 0x2C1B3C6Du;
+  h ^= h >> 12;
+  h *= 0x297A2D39u;
+  h ^= h >> 15;
+  return h;
+}
+
+float Unit(uint32_t h) { return static_cast<float>(h & 0xFFFFFF) / static_cast<float>(0xFFFFFF); }
+
+}  // namespace
+
+bool Intersect(const Primitive& p, const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
+               double max_distance, Hit* hit) {
+  const Eigen::Matrix3d R = p.T_world_primitive.linear();
+  const Eigen::Vector3d o = R.transpose() * (origin - p.T_world_primitive.translation());
+  const Eigen::Vector3d d = R.transpose() * direction;
+  double t = 0;
+  Eigen::Vector3d local_normal;
+  if (p.shape == Primitive::Shape::kBox) {
+    // Slab test.
+    double t_near = -1e300, t_far = 1e300;
+    int axis_near = 0;
+    for (int a = 0; a < 3; ++a) {
+      if (std::abs(d[a]) < 1e-12) {
+        if (std::abs(o[a]) > p.half_size[a]) return false;
+        continue;
+      }
+      double t0 = (-p.half_size[a] - o[a]) / d[a];
+      double t1 = (p.half_size[a] - o[a]) / d[a];
+      if (t0 > t1) std::swap(t0, t1);
+      if (t0 > t_near) {
+        t_near = t0;
+        axis_near = a;
+      }
+      t_far = std::min(t_far, t1);
+      if (t_near > t_far) return false;
+    }
+    if (t_near <= 1e-9 || t_near >= max_distance) return false;
+    t = t_near;
+    local_normal = Eigen::Vector3d::Zero();
+    local_normal[axis_near] = d[axis_near] > 0 ? -1.0 : 1.0;
+  } else {
+    // Ellipsoid: scale to the unit sphere.
+    const Eigen::Vector3d os = o.cwiseQuotient(p.half_size), ds = d.cwiseQuotient(p.half_size);
+    const double a = ds.squaredNorm(), b = os.dot(ds), c = os.squaredNorm() - 1.0;
+    const double disc = b * b - a * c;
+    if (disc < 0) return false;
+    t = (-b - std::sqrt(disc)) / a;
+    if (t <= 1e-9 || t >= max_distance) return false;
+    local_normal = (o + t * d).cwiseQuotient(p.half_size.cwiseProduct(p.half_size)).normalized();
+  }
+  hit->distance = t;
+  hit->point = origin + t * direction;
+  hit->normal = R * local_normal;
+  return true;
+}
+
+Eigen::Vector3f TextureColour(const Eigen::Vector3f& base, uint32_t seed,
+                              const Eigen::Vector3d& q) {
+  // Cell sizes in metres, coarse to fine; the finest still spans several pixels at 4 m.
+  static constexpr double kCell[] = {0.37, 0.13, 0.047};
+  static constexpr float kWeight[] = {0.45f, 0.35f, 0.20f};
+  float value = 0;
+  Eigen::Vector3f tint = Eigen::Vector3f::Zero();
+  for (int octave = 0; octave < 3; ++octave) {
+    const uint32_t ix =
+        static_cast<uint32_t>(static_cast<int32_t>(std::floor(q.x() / kCell[octave])));
+    const uint32_t iy =
+        static_cast<uint32_t>(static_cast<int32_t>(std::floor(q.y() / kCell[octave])));
+    const uint32_t iz =
+        static_cast<uint32_t>(static_cast<int32_t>(std::floor(q.z() / kCell[octave])));
+    const uint32_t h = Hash(ix, iy, iz, seed * 3u + static_cast<uint32_t>(octave));
+    value += kWeight[octave] * Unit(h);
+    if (octave == 0) {
+      tint =
+          Eigen::Vector3f(Unit(Hash(h, 1, 0, 0)), Unit(Hash(h, 2, 0, 0)), Unit(Hash(h, 3, 0, 0)));
+    }
+  }
+  const Eigen::Vector3f colour =
+      base.cwiseProduct(Eigen::Vector3f::Constant(0.25f) + 1.2f * value * Eigen::Vector3f::Ones()) +
+      0.25f * (tint - Eigen::Vector3f::Constant(0.5f));
+  return colour.cwiseMax(0.0f).cwiseMin(1.0f);
+}
+
+bool SceneObject::MovesBetween(double t0, double t1) const {
+  const Eigen::Isometry3d a = pose_at(t0), b = pose_at(t1);
+  if ((a.translation() - b.translation()).norm() > 1e-6) return true;
+  if (Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle() > 1e-6) return true;
+  // Articulated parts (limbs) can move while the reference frame does not.
+  const auto pa = parts_at(t0), pb = parts_at(t1);
+  for (size_t k = 0; k < pa.size() && k < pb.size(); ++k) {
+    if (!pa[k].T_world_primitive.isApprox(pb[k].T_world_primitive, 1e-9)) return true;
+  }
+  return false;
+}
+
+}  // namespace sdoslam::synth

@@ -1,0 +1,69 @@
+#include "sdoslam/synth/sensor.h"
+
+#include <cmath>
+#include <random>
+
+#include "sdoslam/core/error.h"
+
+namespace sdoslam::synth {
+
+void SensorOptions::Check() const {
+  auto require = [](bool ok, const char* field) {
+    if (!ok) throw Error(std::string("sensor.") + field + " is out of range");
+  };
+  require(image_noise_sigma >= 0 && image_noise_sigma < 100, "image_noise_sigma");
+  require(depth_noise_a >= 0 && depth_noise_b >= 0, "depth_noise_a/b");
+  require(silhouette_jump > 0, "silhouette_jump");
+  require(exposure_amplitude >= 0 && exposure_amplitude < 1, "exposure_amplitude");
+  require(motion_blur_samples >= 0 && motion_blur_samples <= 64, "motion_blur_samples");
+  require(exposure_time >= 0 && exposure_time < 1, "exposure_time");
+}
+
+SensorFrame Sense(const RenderedView& view, const CameraOptions& camera,
+                  const SensorOptions& options, uint32_t seed, int frame, double gain) {
+  const int w = view.depth.cols, h = view.depth.rows;
+  std::mt19937 rng(seed * 7919u + static_cast<uint32_t>(frame) * 104729u + 17u);
+  std::normal_distribution<float> unit_normal(0.0f, 1.0f);
+  const bool noisy = options.enabled;
+
+  SensorFrame out;
+  out.bgr.create(h, w, CV_8UC3);
+  for (int v = 0; v < h; ++v) {
+    const auto* in = view.colour.ptr<cv::Vec3f>(v);
+    auto* px = out.bgr.ptr<cv::Vec3b>(v);
+    for (int u = 0; u < w; ++u) {
+      for (int c = 0; c < 3; ++c) {
+        float value = in[u][c] * 255.0f * static_cast<float>(gain);
+        if (noisy) value += static_cast<float>(options.image_noise_sigma) * unit_normal(rng);
+        px[u][c] = cv::saturate_cast<uint8_t>(value);
+      }
+    }
+  }
+
+  out.depth.create(h, w, CV_16UC1);
+  for (int v = 0; v < h; ++v) {
+    const float* z_row = view.depth.ptr<float>(v);
+    auto* d = out.depth.ptr<uint16_t>(v);
+    for (int u = 0; u < w; ++u) {
+      double z = z_row[u];
+      bool missing = z <= 0 || z < camera.depth_min || z > camera.depth_max;
+      if (!missing && noisy) {
+        // Far side of a depth jump: the projector's pattern is shadowed there.
+        const float neighbours[4] = {u > 0 ? z_row[u - 1] : z_row[u],
+                                     u + 1 < w ? z_row[u + 1] : z_row[u],
+                                     v > 0 ? view.depth.ptr<float>(v - 1)[u] : z_row[u],
+                                     v + 1 < h ? view.depth.ptr<float>(v + 1)[u] : z_row[u]};
+        for (float n : neighbours) {
+          if (n > 0 && z - n > options.silhouette_jump * z) missing = true;
+        }
+        const double sigma = options.depth_noise_a + options.depth_noise_b * (z - 0.4) * (z - 0.4);
+        z += sigma * unit_normal(rng);
+      }
+      const double raw = std::round(z * camera.depth_factor);
+      d[u] = missing || raw <= 0 || raw > 65535 ? 0 : static_cast<uint16_t>(raw);
+    }
+  }
+  return out;
+}
+
+}  // namespace sdoslam::synth
