@@ -1,0 +1,180 @@
+#include "sdoslam/features/orb_extractor.h"
+
+#include <algorithm>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+
+#include "sdoslam/core/error.h"
+
+namespace sdoslam {
+namespace {
+
+constexpr int kPatchSize = 31;
+constexpr int kHalfPatch = 15;
+constexpr int kBorder = 19;  // descriptors need the rotated 31-px patch plus smoothing
+
+bool Stronger(const cv::KeyPoint& a, const cv::KeyPoint& b) {
+  if (a.response != b.response) return a.response > b.response;
+  if (a.pt.y != b.pt.y) return a.pt.y < b.pt.y;  // ties broken by position: deterministic
+  return a.pt.x < b.pt.x;
+}
+
+}  // namespace
+
+void OrbOptions::Check() const {
+  if (num_features < 10 || num_features > 100000)
+    throw Error("orb.num_features must be in 10..100000");
+  if (!(scale_factor > 1.0 && scale_factor < 2.0))
+    throw Error("orb.scale_factor must be in (1, 2)");
+  if (num_levels < 1 || num_levels > 16) throw Error("orb.num_levels must be in 1..16");
+  if (fast_threshold < 1 || min_fast_threshold < 1 || min_fast_threshold > fast_threshold) {
+    throw Error("orb.fast_threshold and orb.min_fast_threshold must satisfy 1 <= min <= initial");
+  }
+  if (detection_cell < 10) throw Error("orb.detection_cell must be >= 10 pixels");
+}
+
+std::vector<cv::KeyPoint> DistributeEvenly(const std::vector<cv::KeyPoint>& keypoints,
+                                           const cv::Rect& area, int count) {
+  if (count <= 0 || keypoints.empty()) return {};
+  if (static_cast<int>(keypoints.size()) <= count) return keypoints;
+  auto best_per_cell = [&](double cell) {
+    const int cols = std::max(1, static_cast<int>(std::ceil(area.width / cell)));
+    const int rows = std::max(1, static_cast<int>(std::ceil(area.height / cell)));
+    std::vector<int> best(static_cast<size_t>(cols * rows), -1);
+    for (int k = 0; k < static_cast<int>(keypoints.size()); ++k) {
+      const int c = std::clamp(static_cast<int>((keypoints[k].pt.x - area.x) / cell), 0, cols - 1);
+      const int r = std::clamp(static_cast<int>((keypoints[k].pt.y - area.y) / cell), 0, rows - 1);
+      int& slot = best[static_cast<size_t>(r * cols + c)];
+      if (slot < 0 || Stronger(keypoints[k], keypoints[slot])) slot = k;
+    }
+    std::vector<cv::KeyPoint> selected;
+    for (int k : best)
+      if (k >= 0) selected.push_back(keypoints[k]);
+    return selected;
+  };
+  // The number of occupied cells grows as cells shrink: find the coarsest grid that has
+  // enough of them (bisection on the cell size).
+  double lo = 1.0, hi = std::max(area.width, area.height);
+  std::vector<cv::KeyPoint> selected = best_per_cell(lo);
+  for (int iteration = 0; iteration < 20; ++iteration) {
+    const double mid = 0.5 * (lo + hi);
+    std::vector<cv::KeyPoint> candidate = best_per_cell(mid);
+    if (static_cast<int>(candidate.size()) >= count) {
+      lo = mid;
+      selected = std::move(candidate);
+    } else {
+      hi = mid;
+    }
+  }
+  std::sort(selected.begin(), selected.end(), Stronger);
+  if (static_cast<int>(selected.size()) > count) selected.resize(static_cast<size_t>(count));
+  return selected;
+}
+
+OrbExtractor::OrbExtractor(const OrbOptions& options) : options_(options) {
+  options_.Check();
+  const int levels = options_.num_levels;
+  for (int l = 0; l < levels; ++l) {
+    scale_.push_back(std::pow(options_.scale_factor, l));
+    sigma2_.push_back(scale_.back() * scale_.back());
+    inv_sigma2_.push_back(1.0 / sigma2_.back());
+  }
+  // Features per level in geometric progression: each level gets as many per area as level 0.
+  const double f = 1.0 / options_.scale_factor;
+  double per_level = options_.num_features * (1 - f) / (1 - std::pow(f, levels));
+  int total = 0;
+  for (int l = 0; l < levels - 1; ++l) {
+    features_per_level_.push_back(static_cast<int>(std::lround(per_level)));
+    total += features_per_level_.back();
+    per_level *= f;
+  }
+  features_per_level_.push_back(std::max(options_.num_features - total, 0));
+  for (int v = 0; v <= kHalfPatch; ++v) {
+    circle_half_width_.push_back(
+        static_cast<int>(std::lround(std::sqrt(kHalfPatch * kHalfPatch - v * v))));
+  }
+  descriptor_ = cv::ORB::create(1 << 20, 1.2f, 1, kBorder, 0, 2, cv::ORB::HARRIS_SCORE, kPatchSize,
+                                options_.fast_threshold);
+}
+
+std::vector<cv::KeyPoint> OrbExtractor::DetectLevel(const cv::Mat& image, int level,
+                                                    int quota) const {
+  const cv::Rect area(kBorder, kBorder, image.cols - 2 * kBorder, image.rows - 2 * kBorder);
+  std::vector<cv::KeyPoint> all;
+  if (area.width < 8 || area.height < 8) return all;
+  const int cell = options_.detection_cell;
+  std::vector<cv::KeyPoint> found;
+  for (int y = area.y; y < area.y + area.height; y += cell) {
+    for (int x = area.x; x < area.x + area.width; x += cell) {
+      // 3 extra pixels on each side: FAST needs a 7x7 neighbourhood around a corner.
+      const cv::Rect inner(x, y, std::min(cell, area.x + area.width - x),
+                           std::min(cell, area.y + area.height - y));
+      const cv::Rect outer = cv::Rect(inner.x - 3, inner.y - 3, inner.width + 6, inner.height + 6) &
+                             cv::Rect(0, 0, image.cols, image.rows);
+      for (int threshold : {options_.fast_threshold, options_.min_fast_threshold}) {
+        found.clear();
+        cv::FAST(image(outer), found, threshold, true);
+        bool any = false;
+        for (cv::KeyPoint k : found) {
+          k.pt.x += static_cast<float>(outer.x);
+          k.pt.y += static_cast<float>(outer.y);
+          if (!inner.contains(cv::Point(static_cast<int>(k.pt.x), static_cast<int>(k.pt.y))))
+            continue;
+          all.push_back(k);
+          any = true;
+        }
+        if (any) break;
+      }
+    }
+  }
+  return DistributeEvenly(all, area, quota);
+}
+
+void OrbExtractor::Extract(const cv::Mat& gray, std::vector<cv::KeyPoint>* keypoints,
+                           cv::Mat* descriptors) const {
+  CV_Assert(gray.type() == CV_8UC1);
+  keypoints->clear();
+  std::vector<cv::Mat> level_descriptors;
+  cv::Mat level_image = gray;
+  for (int level = 0; level < options_.num_levels; ++level) {
+    if (level > 0) {
+      const cv::Size size(static_cast<int>(std::lround(gray.cols / scale_[level])),
+                          static_cast<int>(std::lround(gray.rows / scale_[level])));
+      if (size.width < 2 * kBorder + 8 || size.height < 2 * kBorder + 8) break;
+      cv::resize(gray, level_image, size, 0, 0, cv::INTER_LINEAR);
+    }
+    std::vector<cv::KeyPoint> kps = DetectLevel(level_image, level, features_per_level_[level]);
+    // Orientation by intensity centroid over a circular patch.
+    for (cv::KeyPoint& k : kps) {
+      const int cx = static_cast<int>(std::lround(k.pt.x)),
+                cy = static_cast<int>(std::lround(k.pt.y));
+      int m01 = 0, m10 = 0;
+      for (int v = -kHalfPatch; v <= kHalfPatch; ++v) {
+        const uint8_t* row = level_image.ptr<uint8_t>(cy + v);
+        const int w = circle_half_width_[static_cast<size_t>(std::abs(v))];
+        for (int u = -w; u <= w; ++u) {
+          const int value = row[cx + u];
+          m10 += u * value;
+          m01 += v * value;
+        }
+      }
+      float angle = static_cast<float>(
+          std::atan2(static_cast<double>(m01), static_cast<double>(m10)) * 180.0 / CV_PI);
+      if (angle < 0) angle += 360.0f;
+      k.angle = angle;
+      k.octave = level;
+      k.size = static_cast<float>(kPatchSize * scale_[level]);
+    }
+    cv::Mat desc;
+    // OpenCV smooths the level before sampling the descriptor pairs, as the ORB paper does.
+    descriptor_->compute(level_image, kps, desc);
+    for (cv::KeyPoint& k : kps) {
+      k.pt *= static_cast<float>(scale_[level]);
+    }
+    keypoints->insert(keypoints->end(), kps.begin(), kps.end());
+    level_descriptors.push_back(desc);
+  }
+  cv::vconcat(level_descriptors, *descriptors);
+}
+
+}  // namespace sdoslam

@@ -1,0 +1,62 @@
+#pragma once
+
+#include <opencv2/core.hpp>
+#include <opencv2/features2d.hpp>
+#include <vector>
+
+namespace sdoslam {
+
+struct OrbOptions {
+  int num_features = 1000;    // per frame, over all levels
+  double scale_factor = 1.2;  // between pyramid levels
+  int num_levels = 8;
+  int fast_threshold = 20;     // FAST threshold tried first in each grid cell...
+  int min_fast_threshold = 7;  // ...and this one where the first finds nothing (low texture)
+  int detection_cell = 35;     // pixels: FAST runs per cell so that every cell gets a chance
+  void Check() const;
+};
+
+// ORB features as ORB-SLAM uses them: an image pyramid, FAST corners per grid cell with an
+// adaptive threshold, an even spatial distribution per level, orientation by intensity
+// centroid, 256-bit rBRIEF descriptors (OpenCV computes FAST and the descriptors; detection
+// per cell, the distribution and the orientation are ours).
+class OrbExtractor {
+ public:
+  explicit OrbExtractor(const OrbOptions& options);
+
+  // Keypoints in level-0 pixel coordinates (octave = pyramid level, size = patch size at that
+  // level, angle in degrees); descriptors: one CV_8U row of 32 bytes per keypoint.
+  void Extract(const cv::Mat& gray, std::vector<cv::KeyPoint>* keypoints,
+               cv::Mat* descriptors) const;
+
+  const OrbOptions& options() const { return options_; }
+  const std::vector<double>& scale() const { return scale_; }    // per level
+  const std::vector<double>& sigma2() const { return sigma2_; }  // scale²
+  const std::vector<double>& inv_sigma2() const { return inv_sigma2_; }
+
+ private:
+  std::vector<cv::KeyPoint> DetectLevel(const cv::Mat& image, int level, int quota) const;
+
+  OrbOptions options_;
+  std::vector<double> scale_, sigma2_, inv_sigma2_;
+  std::vector<int> features_per_level_;
+  std::vector<int> circle_half_width_;  // intensity-centroid patch
+  cv::Ptr<cv::ORB> descriptor_;
+};
+
+// Selects at most `count` keypoints spread evenly over `area`: the area is divided into the
+// coarsest grid whose occupied cells number at least `count`, and the strongest corner of each
+// cell is kept (the strongest cells first when there are more cells than `count`).
+// An equivalent of ORB-SLAM's quadtree, simpler to reason about. Deterministic.
+std::vector<cv::KeyPoint> DistributeEvenly(const std::vector<cv::KeyPoint>& keypoints,
+                                           const cv::Rect& area, int count);
+
+// Hamming distance of two 256-bit descriptors.
+inline int DescriptorDistance(const uint8_t* a, const uint8_t* b) {
+  const auto* x = reinterpret_cast<const uint64_t*>(a);
+  const auto* y = reinterpret_cast<const uint64_t*>(b);
+  return __builtin_popcountll(x[0] ^ y[0]) + __builtin_popcountll(x[1] ^ y[1]) +
+         __builtin_popcountll(x[2] ^ y[2]) + __builtin_popcountll(x[3] ^ y[3]);
+}
+
+}  // namespace sdoslam

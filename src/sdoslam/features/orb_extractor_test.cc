@@ -1,0 +1,102 @@
+#include "sdoslam/features/orb_extractor.h"
+
+#include <gtest/gtest.h>
+
+#include <opencv2/imgproc.hpp>
+#include <random>
+
+namespace sdoslam {
+namespace {
+
+// A 640x480 image of random grey rectangles: corners everywhere, nothing repeating.
+cv::Mat BlockImage(unsigned seed) {
+  cv::Mat image(480, 640, CV_8UC1, cv::Scalar(128));
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<int> x(0, 639), y(0, 479), size(6, 40), grey(0, 255);
+  for (int k = 0; k < 3000; ++k) {
+    cv::rectangle(image, cv::Rect(x(rng), y(rng), size(rng), size(rng)), cv::Scalar(grey(rng)),
+                  cv::FILLED);
+  }
+  cv::GaussianBlur(image, image, cv::Size(3, 3), 0.8);
+  return image;
+}
+
+TEST(OrbExtractor, FindsAboutTheRequestedNumberSpreadOverTheImage) {
+  const OrbExtractor orb(OrbOptions{});
+  std::vector<cv::KeyPoint> kps;
+  cv::Mat desc;
+  orb.Extract(BlockImage(1), &kps, &desc);
+  EXPECT_GT(kps.size(), 900u);
+  EXPECT_LE(kps.size(), 1000u);
+  EXPECT_EQ(desc.rows, static_cast<int>(kps.size()));
+  EXPECT_EQ(desc.cols, 32);
+  // Every cell of a 4x4 grid holds a fair share (an even spread gives 1/16 = 6 % each); a
+  // strongest-first selection would pile up where the contrast is highest.
+  int cells[16] = {};
+  std::set<int> levels;
+  for (const auto& k : kps) {
+    cells[std::min(3, static_cast<int>(k.pt.y / 120)) * 4 +
+          std::min(3, static_cast<int>(k.pt.x / 160))]++;
+    levels.insert(k.octave);
+  }
+  for (int c : cells) EXPECT_GT(c, static_cast<int>(kps.size()) / 40) << "cell count " << c;
+  EXPECT_EQ(levels.size(), 8u);
+}
+
+TEST(OrbExtractor, LowContrastRegionsStillGetCornersFromTheLowerThreshold) {
+  cv::Mat image = BlockImage(2);
+  cv::Mat left = image(cv::Rect(0, 0, 320, 480));
+  left.convertTo(left, -1, 0.08, 118);  // contrast of a few grey levels: FAST 20 finds nothing
+  const OrbExtractor orb(OrbOptions{});
+  std::vector<cv::KeyPoint> kps;
+  cv::Mat desc;
+  orb.Extract(image, &kps, &desc);
+  int left_count = 0;
+  for (const auto& k : kps) left_count += k.pt.x < 300;
+  EXPECT_GT(left_count, 150);
+}
+
+TEST(DistributeEvenly, KeepsTheStrongestPerCellAndTheCount) {
+  std::vector<cv::KeyPoint> kps;
+  for (int k = 0; k < 100; ++k)
+    kps.emplace_back(cv::Point2f(5.0f + k * 0.01f, 5.0f), 1.f, -1, 100.0f + k);  // a cluster
+  kps.emplace_back(cv::Point2f(90, 90), 1.f, -1, 1.0f);                          // weak but alone
+  kps.emplace_back(cv::Point2f(90, 10), 1.f, -1, 2.0f);
+  const auto selected = DistributeEvenly(kps, cv::Rect(0, 0, 100, 100), 3);
+  ASSERT_EQ(selected.size(), 3u);
+  EXPECT_FLOAT_EQ(selected[0].response, 199.0f);  // the cluster's best
+  std::set<float> xs;
+  for (const auto& k : selected) xs.insert(k.pt.x);
+  EXPECT_TRUE(xs.count(90.0f));
+}
+
+TEST(OrbExtractor, DescriptorsMatchUnderShiftAndOrientationFollowsRotation) {
+  const cv::Mat image = BlockImage(3);
+  cv::Mat rotated;
+  cv::rotate(image, rotated, cv::ROTATE_90_CLOCKWISE);  // 480x640
+  const OrbExtractor orb(OrbOptions{});
+  std::vector<cv::KeyPoint> a, b;
+  cv::Mat da, db;
+  orb.Extract(image, &a, &da);
+  orb.Extract(rotated, &b, &db);
+  // Pixel (x, y) goes to (479 - y, x) under the rotation; angles grow by 90 degrees.
+  int matched = 0, close = 0, angle_ok = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (a[i].octave != 0) continue;
+    const cv::Point2f expected(479.0f - a[i].pt.y, a[i].pt.x);
+    for (size_t j = 0; j < b.size(); ++j) {
+      if (b[j].octave != 0 || cv::norm(b[j].pt - expected) > 0.5) continue;
+      ++matched;
+      close += DescriptorDistance(da.ptr<uint8_t>(static_cast<int>(i)),
+                                  db.ptr<uint8_t>(static_cast<int>(j))) < 50;
+      const double d = std::fmod(b[j].angle - a[i].angle + 720.0, 360.0);
+      angle_ok += std::abs(d - 90.0) < 5.0;
+    }
+  }
+  ASSERT_GT(matched, 100);
+  EXPECT_GT(angle_ok, 0.9 * matched);
+  EXPECT_GT(close, 0.8 * matched);  // rotation-invariant descriptors
+}
+
+}  // namespace
+}  // namespace sdoslam
