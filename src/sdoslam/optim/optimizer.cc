@@ -1,0 +1,145 @@
+#include "sdoslam/optim/optimizer.h"
+
+#include <cmath>
+#include <memory>
+
+namespace sdoslam {
+namespace {
+
+ceres::CostFunction* MakeResidual(const PinholeIntrinsics& k, const PointObservation& m) {
+  const double sqrt_info = std::sqrt(m.inv_sigma2);
+  if (m.right_u >= 0) {
+    return new StereoReprojectionError(Eigen::Vector3d(m.pixel.x(), m.pixel.y(), m.right_u),
+                                       sqrt_info, k);
+  }
+  return new ReprojectionError(m.pixel, sqrt_info, k);
+}
+
+// Whitened squared error of an observation, or +inf behind the camera.
+double Chi2(const PinholeIntrinsics& k, const Eigen::Isometry3d& T, const Eigen::Vector3d& X,
+            const PointObservation& m) {
+  const Eigen::Vector3d p = T * X;
+  if (p.z() <= 1e-6) return std::numeric_limits<double>::infinity();
+  const double u = k.fx * p.x() / p.z() + k.cx, v = k.fy * p.y() / p.z() + k.cy;
+  double e2 = (u - m.pixel.x()) * (u - m.pixel.x()) + (v - m.pixel.y()) * (v - m.pixel.y());
+  if (m.right_u >= 0) {
+    const double ur = u - k.bf / p.z();
+    e2 += (ur - m.right_u) * (ur - m.right_u);
+  }
+  return e2 * m.inv_sigma2;
+}
+
+double Threshold(const PointObservation& m) { return m.right_u >= 0 ? kChi2Stereo : kChi2Mono; }
+
+ceres::Problem::Options ProblemOptions() {
+  ceres::Problem::Options o;
+  // Residuals are built per solve; let the problem own them (and the loss functions, which
+  // are shared and so owned here explicitly instead).
+  o.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  o.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  return o;
+}
+
+}  // namespace
+
+PoseOptimizationResult OptimizePose(const PinholeIntrinsics& k, const Eigen::Isometry3d& initial,
+                                    const std::vector<Eigen::Vector3d>& points,
+                                    const std::vector<PointObservation>& observations,
+                                    const PoseOptimizationOptions& options) {
+  PoseOptimizationResult result;
+  result.T_camera_world = initial;
+  result.inlier.assign(observations.size(), true);
+  if (observations.empty()) return result;
+  double pose[7];
+  PoseToParameters(initial, pose);
+  std::vector<Eigen::Vector3d> fixed_points = points;
+  PoseManifold manifold;
+  ceres::HuberLoss huber_mono(std::sqrt(kChi2Mono)), huber_stereo(std::sqrt(kChi2Stereo));
+
+  for (int round = 0; round < options.rounds; ++round) {
+    ceres::Problem problem(ProblemOptions());
+    problem.AddParameterBlock(pose, 7, &manifold);
+    int used = 0;
+    for (size_t i = 0; i < observations.size(); ++i) {
+      if (!result.inlier[i]) continue;
+      const PointObservation& m = observations[i];
+      problem.AddResidualBlock(MakeResidual(k, m), m.right_u >= 0 ? &huber_stereo : &huber_mono,
+                               pose, fixed_points[i].data());
+      problem.SetParameterBlockConstant(fixed_points[i].data());
+      ++used;
+    }
+    if (used < 3) break;
+    ceres::Solver::Options solver;
+    solver.linear_solver_type = ceres::DENSE_QR;
+    solver.max_num_iterations = options.iterations_per_round;
+    solver.num_threads = 1;
+    solver.logging_type = ceres::SILENT;
+    ceres::Solver::Summary summary;
+    ceres::Solve(solver, &problem, &summary);
+    // Reclassify every observation, including earlier outliers, at the new pose.
+    const Eigen::Isometry3d T = PoseFromParameters(pose);
+    for (size_t i = 0; i < observations.size(); ++i) {
+      result.inlier[i] = Chi2(k, T, points[i], observations[i]) <= Threshold(observations[i]);
+    }
+  }
+  result.T_camera_world = PoseFromParameters(pose);
+  result.num_inliers = 0;
+  for (bool b : result.inlier) result.num_inliers += b;
+  return result;
+}
+
+std::vector<bool> BundleAdjust(const PinholeIntrinsics& k, BundleAdjustmentProblem* ba,
+                               const BundleAdjustmentOptions& options) {
+  std::vector<std::array<double, 7>> poses(ba->poses.size());
+  for (size_t i = 0; i < poses.size(); ++i) PoseToParameters(ba->poses[i], poses[i].data());
+  PoseManifold manifold;
+  ceres::HuberLoss huber_mono(std::sqrt(kChi2Mono)), huber_stereo(std::sqrt(kChi2Stereo));
+  std::vector<bool> inlier(ba->observations.size(), true);
+
+  auto solve = [&](int iterations) {
+    ceres::Problem problem(ProblemOptions());
+    for (size_t i = 0; i < poses.size(); ++i) {
+      problem.AddParameterBlock(poses[i].data(), 7, &manifold);
+      if (ba->pose_fixed[i]) problem.SetParameterBlockConstant(poses[i].data());
+    }
+    for (size_t o = 0; o < ba->observations.size(); ++o) {
+      if (!inlier[o]) continue;
+      const auto& obs = ba->observations[o];
+      problem.AddResidualBlock(MakeResidual(k, obs.measurement),
+                               obs.measurement.right_u >= 0 ? &huber_stereo : &huber_mono,
+                               poses[static_cast<size_t>(obs.pose)].data(),
+                               ba->points[static_cast<size_t>(obs.point)].data());
+    }
+    ceres::Solver::Options solver;
+    solver.linear_solver_type = ceres::SPARSE_SCHUR;
+    if (!ceres::IsSparseLinearAlgebraLibraryTypeAvailable(
+            solver.sparse_linear_algebra_library_type)) {
+      solver.linear_solver_type = ceres::DENSE_SCHUR;
+    }
+    solver.max_num_iterations = iterations;
+    solver.num_threads = 1;
+    solver.logging_type = ceres::SILENT;
+    ceres::Solver::Summary summary;
+    ceres::Solve(solver, &problem, &summary);
+  };
+  auto classify = [&] {
+    for (size_t o = 0; o < ba->observations.size(); ++o) {
+      const auto& obs = ba->observations[o];
+      const Eigen::Isometry3d T = PoseFromParameters(poses[static_cast<size_t>(obs.pose)].data());
+      inlier[o] = Chi2(k, T, ba->points[static_cast<size_t>(obs.point)], obs.measurement) <=
+                  Threshold(obs.measurement);
+    }
+  };
+  if (!ba->observations.empty()) {
+    solve(options.iterations);
+    classify();
+    if (options.refine_iterations > 0) {
+      solve(options.refine_iterations);
+      classify();
+    }
+  }
+  for (size_t i = 0; i < poses.size(); ++i) ba->poses[i] = PoseFromParameters(poses[i].data());
+  return inlier;
+}
+
+}  // namespace sdoslam

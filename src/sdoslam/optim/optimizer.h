@@ -1,0 +1,64 @@
+#pragma once
+
+#include <Eigen/Geometry>
+#include <vector>
+
+#include "sdoslam/optim/residuals.h"
+
+namespace sdoslam {
+
+// One image measurement of a point. right_u < 0: no depth (monocular residual).
+struct PointObservation {
+  Eigen::Vector2d pixel = Eigen::Vector2d::Zero();  // undistorted
+  double right_u = -1.0;
+  double inv_sigma2 = 1.0;  // 1 / (pyramid scale of the keypoint's level)²
+};
+
+// χ² (95 %) thresholds of ORB-SLAM for 2 and 3 degrees of freedom.
+inline constexpr double kChi2Mono = 5.991;
+inline constexpr double kChi2Stereo = 7.815;
+
+struct PoseOptimizationOptions {
+  int rounds = 4;  // outlier classification rounds
+  int iterations_per_round = 10;
+};
+
+struct PoseOptimizationResult {
+  Eigen::Isometry3d T_camera_world = Eigen::Isometry3d::Identity();
+  std::vector<bool> inlier;  // per observation
+  int num_inliers = 0;
+};
+
+// Motion-only optimisation (ORB-SLAM's PoseOptimization): the camera pose that minimises the
+// Huber-robust reprojection error of fixed world points; after each round observations above the
+// χ² threshold are left out of the next (and may come back if they fit again).
+PoseOptimizationResult OptimizePose(const PinholeIntrinsics& intrinsics,
+                                    const Eigen::Isometry3d& initial_T_camera_world,
+                                    const std::vector<Eigen::Vector3d>& points_world,
+                                    const std::vector<PointObservation>& observations,
+                                    const PoseOptimizationOptions& options = {});
+
+struct BundleAdjustmentProblem {
+  std::vector<Eigen::Isometry3d> poses;  // T_camera_world, refined in place
+  std::vector<bool> pose_fixed;
+  std::vector<Eigen::Vector3d> points;  // world, refined in place
+  struct Observation {
+    int pose = 0, point = 0;
+    PointObservation measurement;
+  };
+  std::vector<Observation> observations;
+};
+
+struct BundleAdjustmentOptions {
+  int iterations = 5;          // first pass, all observations with Huber loss
+  int refine_iterations = 10;  // second pass without the outliers of the first
+};
+
+// Local bundle adjustment: poses (not fixed) and points jointly. Returns per observation whether
+// it is an inlier after the optimisation (χ² test and positive depth). Single-threaded and so
+// deterministic.
+std::vector<bool> BundleAdjust(const PinholeIntrinsics& intrinsics,
+                               BundleAdjustmentProblem* problem,
+                               const BundleAdjustmentOptions& options = {});
+
+}  // namespace sdoslam

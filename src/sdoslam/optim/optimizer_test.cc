@@ -1,0 +1,111 @@
+#include "sdoslam/optim/optimizer.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+namespace sdoslam {
+namespace {
+
+const PinholeIntrinsics kK{535.4, 539.2, 320.1, 247.6, 40.0};
+
+PointObservation Observe(const Eigen::Isometry3d& T, const Eigen::Vector3d& X, bool stereo) {
+  const Eigen::Vector3d p = T * X;
+  PointObservation m;
+  m.pixel = Eigen::Vector2d(kK.fx * p.x() / p.z() + kK.cx, kK.fy * p.y() / p.z() + kK.cy);
+  if (stereo) m.right_u = m.pixel.x() - kK.bf / p.z();
+  return m;
+}
+
+Eigen::Isometry3d TruePose() {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(0.2, Eigen::Vector3d(0, 1, 0.3).normalized()).toRotationMatrix();
+  T.translation() = Eigen::Vector3d(0.3, -0.1, 0.2);
+  return T;
+}
+
+TEST(OptimizePose, RecoversAKnownPoseFromNoisyCorrespondencesWithOutliers) {
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<double> xy(-2, 2), depth(1.5, 5);
+  std::normal_distribution<double> pixel_noise(0, 0.7);
+  const Eigen::Isometry3d T = TruePose();
+  std::vector<Eigen::Vector3d> points;
+  std::vector<PointObservation> obs;
+  std::vector<bool> is_outlier;
+  for (int i = 0; i < 300; ++i) {
+    Eigen::Vector3d X(xy(rng), xy(rng), depth(rng));
+    X = T.inverse() * X;
+    PointObservation m = Observe(T, X, i % 2 == 0);
+    m.pixel += Eigen::Vector2d(pixel_noise(rng), pixel_noise(rng));
+    if (m.right_u >= 0)
+      m.right_u = m.pixel.x() - (Observe(T, X, true).pixel.x() - Observe(T, X, true).right_u);
+    const bool outlier = i % 5 == 0;  // 20 %: a moving object's features, 30-80 px off
+    if (outlier) m.pixel += Eigen::Vector2d(30 + i % 50, -40);
+    points.push_back(X);
+    obs.push_back(m);
+    is_outlier.push_back(outlier);
+  }
+  Eigen::Isometry3d initial = T;
+  initial.translation() += Eigen::Vector3d(0.05, -0.03, 0.04);
+  initial.linear() =
+      Eigen::AngleAxisd(0.03, Eigen::Vector3d::UnitX()).toRotationMatrix() * initial.linear();
+  const PoseOptimizationResult r = OptimizePose(kK, initial, points, obs);
+  EXPECT_LT((r.T_camera_world.translation() - T.translation()).norm(), 0.005);
+  EXPECT_LT(Eigen::AngleAxisd(r.T_camera_world.linear() * T.linear().transpose()).angle(), 0.002);
+  int flagged_outliers = 0, kept_inliers = 0;
+  for (size_t i = 0; i < obs.size(); ++i) {
+    flagged_outliers += is_outlier[i] && !r.inlier[i];
+    kept_inliers += !is_outlier[i] && r.inlier[i];
+  }
+  EXPECT_EQ(flagged_outliers, 60);
+  EXPECT_GT(kept_inliers, 0.9 * 240);
+  EXPECT_EQ(r.num_inliers, static_cast<int>(std::count(r.inlier.begin(), r.inlier.end(), true)));
+}
+
+TEST(BundleAdjust, ReducesReprojectionErrorOfAPerturbedProblem) {
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> xy(-1.5, 1.5), depth(2, 4);
+  std::normal_distribution<double> noise(0, 0.02);
+  BundleAdjustmentProblem ba;
+  std::vector<Eigen::Isometry3d> truth;
+  for (int c = 0; c < 4; ++c) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.translation() = Eigen::Vector3d(-0.15 * c, 0.05 * c, 0);
+    T.linear() = Eigen::AngleAxisd(0.03 * c, Eigen::Vector3d::UnitY()).toRotationMatrix();
+    truth.push_back(T);
+    Eigen::Isometry3d perturbed = T;
+    if (c > 0) perturbed.translation() += Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+    ba.poses.push_back(perturbed);
+    ba.pose_fixed.push_back(c == 0);  // gauge
+  }
+  std::vector<Eigen::Vector3d> true_points;
+  for (int i = 0; i < 200; ++i) {
+    const Eigen::Vector3d X(xy(rng), xy(rng), depth(rng));
+    true_points.push_back(X);
+    ba.points.push_back(X + Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
+    for (int c = 0; c < 4; ++c) ba.observations.push_back({c, i, Observe(truth[c], X, c % 2 == 0)});
+  }
+  auto total_error = [&] {
+    double e = 0;
+    for (const auto& o : ba.observations) {
+      const Eigen::Vector3d p = ba.poses[o.pose] * ba.points[o.point];
+      e += (Eigen::Vector2d(kK.fx * p.x() / p.z() + kK.cx, kK.fy * p.y() / p.z() + kK.cy) -
+            o.measurement.pixel)
+               .squaredNorm();
+    }
+    return std::sqrt(e / ba.observations.size());
+  };
+  const double before = total_error();
+  const auto inliers = BundleAdjust(kK, &ba);
+  const double after = total_error();
+  EXPECT_GT(before, 5.0);
+  EXPECT_LT(after, 0.01);
+  EXPECT_EQ(std::count(inliers.begin(), inliers.end(), true),
+            static_cast<long>(ba.observations.size()));
+  for (int c = 1; c < 4; ++c)
+    EXPECT_LT((ba.poses[c].translation() - truth[c].translation()).norm(), 1e-4);
+  EXPECT_TRUE(ba.poses[0].isApprox(truth[0]));  // fixed
+}
+
+}  // namespace
+}  // namespace sdoslam
