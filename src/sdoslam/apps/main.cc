@@ -7,6 +7,7 @@
 
 #include "sdoslam/apps/demo_command.h"
 #include "sdoslam/apps/eval_command.h"
+#include "sdoslam/apps/run_command.h"
 #include "sdoslam/apps/synth_command.h"
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/logging.h"
@@ -21,6 +22,7 @@ int main(int argc, char** argv) {
   sdoslam::AddEvalCommand(app);
   sdoslam::AddDemoCommand(app);
   sdoslam::AddSynthCommand(app);
+  sdoslam::AddRunCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -1,0 +1,115 @@
+#include "sdoslam/map/frame.h"
+
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+
+namespace sdoslam {
+
+FrameGeometry::FrameGeometry(const Camera& cam, const OrbExtractor& extractor, double bf_value,
+                             double close_depth_value)
+    : camera(cam),
+      scale(extractor.scale()),
+      inv_sigma2(extractor.inv_sigma2()),
+      close_depth(close_depth_value) {
+  const CameraOptions& o = camera.options();
+  intrinsics = {o.fx, o.fy, o.cx, o.cy, bf_value};
+  log_scale_factor = std::log(extractor.options().scale_factor);
+  // With distortion, the undistorted image is not the rectangle [0,w)x[0,h): take the corners.
+  const auto corners =
+      camera.UndistortPoints({{0, 0},
+                              {static_cast<float>(o.width), 0},
+                              {0, static_cast<float>(o.height)},
+                              {static_cast<float>(o.width), static_cast<float>(o.height)}});
+  min_x = std::min(corners[0].x, corners[2].x);
+  max_x = std::max(corners[1].x, corners[3].x);
+  min_y = std::min(corners[0].y, corners[1].y);
+  max_y = std::max(corners[2].y, corners[3].y);
+  grid_cell_inv_w = kGridCols / (max_x - min_x);
+  grid_cell_inv_h = kGridRows / (max_y - min_y);
+}
+
+Frame::Frame(size_t frame_index, double time, const cv::Mat& bgr, const cv::Mat& depth_image,
+             std::shared_ptr<const FrameGeometry> shared_geometry, const OrbExtractor& extractor)
+    : index(frame_index), timestamp(time), geometry(std::move(shared_geometry)) {
+  cv::Mat gray;
+  if (bgr.channels() == 3) {
+    cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
+  } else {
+    gray = bgr;
+  }
+  extractor.Extract(gray, &keypoints, &descriptors);
+  std::vector<cv::Point2f> points;
+  points.reserve(keypoints.size());
+  for (const auto& k : keypoints) points.push_back(k.pt);
+  undistorted = geometry->camera.UndistortPoints(points);
+  const size_t n = keypoints.size();
+  depth.assign(n, 0.0f);
+  right_u.assign(n, -1.0f);
+  map_points.assign(n, nullptr);
+  outlier.assign(n, false);
+  grid_.assign(FrameGeometry::kGridCols * FrameGeometry::kGridRows, {});
+  for (size_t i = 0; i < n; ++i) {
+    const int u = static_cast<int>(std::lround(keypoints[i].pt.x)),
+              v = static_cast<int>(std::lround(keypoints[i].pt.y));
+    if (!depth_image.empty() && u >= 0 && v >= 0 && u < depth_image.cols && v < depth_image.rows) {
+      const float d = depth_image.at<float>(v, u);
+      if (d > 0) {
+        depth[i] = d;
+        right_u[i] = static_cast<float>(undistorted[i].x - geometry->intrinsics.bf / d);
+      }
+    }
+    const int gx =
+        static_cast<int>((undistorted[i].x - geometry->min_x) * geometry->grid_cell_inv_w);
+    const int gy =
+        static_cast<int>((undistorted[i].y - geometry->min_y) * geometry->grid_cell_inv_h);
+    if (gx >= 0 && gy >= 0 && gx < FrameGeometry::kGridCols && gy < FrameGeometry::kGridRows) {
+      grid_[static_cast<size_t>(gy * FrameGeometry::kGridCols + gx)].push_back(static_cast<int>(i));
+    }
+  }
+}
+
+std::vector<int> Frame::FeaturesInArea(double u, double v, double radius, int min_level,
+                                       int max_level) const {
+  std::vector<int> result;
+  const FrameGeometry& g = *geometry;
+  const int x0 =
+      std::max(0, static_cast<int>(std::floor((u - g.min_x - radius) * g.grid_cell_inv_w)));
+  const int x1 = std::min(FrameGeometry::kGridCols - 1,
+                          static_cast<int>(std::ceil((u - g.min_x + radius) * g.grid_cell_inv_w)));
+  const int y0 =
+      std::max(0, static_cast<int>(std::floor((v - g.min_y - radius) * g.grid_cell_inv_h)));
+  const int y1 = std::min(FrameGeometry::kGridRows - 1,
+                          static_cast<int>(std::ceil((v - g.min_y + radius) * g.grid_cell_inv_h)));
+  for (int gy = y0; gy <= y1; ++gy) {
+    for (int gx = x0; gx <= x1; ++gx) {
+      for (int i : grid_[static_cast<size_t>(gy * FrameGeometry::kGridCols + gx)]) {
+        const int level = keypoints[static_cast<size_t>(i)].octave;
+        if ((min_level >= 0 && level < min_level) || (max_level >= 0 && level > max_level))
+          continue;
+        const double dx = undistorted[static_cast<size_t>(i)].x - u,
+                     dy = undistorted[static_cast<size_t>(i)].y - v;
+        if (std::abs(dx) < radius && std::abs(dy) < radius) result.push_back(i);
+      }
+    }
+  }
+  std::sort(result.begin(), result.end());
+  return result;
+}
+
+Eigen::Vector3d Frame::UnprojectWorld(int i) const {
+  const Eigen::Vector3d p = geometry->camera.Unproject(
+      {undistorted[static_cast<size_t>(i)].x, undistorted[static_cast<size_t>(i)].y},
+      depth[static_cast<size_t>(i)]);
+  return T_camera_world.inverse() * p;
+}
+
+PointObservation Frame::Observation(int i) const {
+  const size_t k = static_cast<size_t>(i);
+  PointObservation m;
+  m.pixel = Eigen::Vector2d(undistorted[k].x, undistorted[k].y);
+  m.right_u = right_u[k];
+  m.inv_sigma2 = geometry->inv_sigma2[static_cast<size_t>(keypoints[k].octave)];
+  return m;
+}
+
+}  // namespace sdoslam

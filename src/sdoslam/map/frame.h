@@ -1,0 +1,68 @@
+#pragma once
+
+#include <Eigen/Geometry>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "sdoslam/core/camera.h"
+#include "sdoslam/features/orb_extractor.h"
+#include "sdoslam/optim/optimizer.h"
+
+namespace sdoslam {
+
+class MapPoint;
+
+// What every frame of a run shares: camera, pyramid, the virtual stereo baseline, and the grid
+// used to look up features by position.
+struct FrameGeometry {
+  FrameGeometry(const Camera& camera, const OrbExtractor& extractor, double bf, double close_depth);
+  Camera camera;
+  PinholeIntrinsics intrinsics;
+  std::vector<double> scale, inv_sigma2;
+  double log_scale_factor = 0;
+  double close_depth = 0;  // metres: nearer keypoints count as "close" (ORB-SLAM's ThDepth)
+  float min_x = 0, max_x = 0, min_y = 0, max_y = 0;  // undistorted image bounds
+  static constexpr int kGridCols = 64, kGridRows = 48;
+  float grid_cell_inv_w = 0, grid_cell_inv_h = 0;
+  bool InImage(double u, double v) const {
+    return u >= min_x && u < max_x && v >= min_y && v < max_y;
+  }
+};
+
+// A frame's features: keypoints with depth, descriptors, and the map points they are matched to.
+class Frame {
+ public:
+  // Extracts ORB features from `bgr` and reads each keypoint's depth from `depth` (metres,
+  // 0 = none) at the keypoint's (distorted) position, where the depth image is registered.
+  Frame(size_t index, double timestamp, const cv::Mat& bgr, const cv::Mat& depth,
+        std::shared_ptr<const FrameGeometry> geometry, const OrbExtractor& extractor);
+
+  size_t size() const { return keypoints.size(); }
+  // Indices of features within `radius` px of (u, v) (undistorted), on levels [min_level,
+  // max_level] (-1: any), in ascending order.
+  std::vector<int> FeaturesInArea(double u, double v, double radius, int min_level = -1,
+                                  int max_level = -1) const;
+  bool HasDepth(int i) const { return depth[static_cast<size_t>(i)] > 0; }
+  // Keypoint i back-projected with its depth, in world coordinates at the frame's pose.
+  Eigen::Vector3d UnprojectWorld(int i) const;
+  PointObservation Observation(int i) const;
+  Eigen::Vector3d CameraCentre() const { return T_camera_world.inverse().translation(); }
+
+  size_t index;
+  double timestamp;
+  std::shared_ptr<const FrameGeometry> geometry;
+  std::vector<cv::KeyPoint> keypoints;  // as detected (distorted)
+  std::vector<cv::Point2f> undistorted;
+  std::vector<float> depth;           // metres; 0 = none
+  std::vector<float> right_u;         // virtual right-image u; -1 = none
+  cv::Mat descriptors;                // N x 32, CV_8U
+  std::vector<MapPoint*> map_points;  // matched map point per feature, or nullptr
+  std::vector<bool> outlier;
+  Eigen::Isometry3d T_camera_world = Eigen::Isometry3d::Identity();
+
+ private:
+  std::vector<std::vector<int>> grid_;
+};
+
+}  // namespace sdoslam

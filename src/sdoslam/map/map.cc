@@ -1,0 +1,206 @@
+#include "sdoslam/map/map.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace sdoslam {
+
+MapPoint::MapPoint(uint64_t point_id, const Eigen::Vector3d& p, KeyFrame* ref)
+    : id(point_id), position(p), reference(ref), first_keyframe_id(ref->id) {}
+
+int MapPoint::PredictLevel(double distance, const FrameGeometry& g) const {
+  const double ratio = max_distance / distance;
+  const int level = static_cast<int>(std::ceil(std::log(ratio) / g.log_scale_factor));
+  return std::clamp(level, 0, static_cast<int>(g.scale.size()) - 1);
+}
+
+void MapPoint::UpdateFromObservations() {
+  if (bad || observations.empty()) return;
+  std::vector<const uint8_t*> descriptors;
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const auto& [kf_id, obs] : observations) {
+    const auto& [kf, i] = obs;
+    descriptors.push_back(kf->frame.descriptors.ptr<uint8_t>(i));
+    sum += (position - kf->CameraCentre()).normalized();
+  }
+  normal = sum.normalized();
+  // Representative descriptor: least median distance to the others.
+  const size_t n = descriptors.size();
+  size_t best = 0;
+  int best_median = 1 << 30;
+  for (size_t a = 0; a < n; ++a) {
+    std::vector<int> d;
+    for (size_t b = 0; b < n; ++b) d.push_back(DescriptorDistance(descriptors[a], descriptors[b]));
+    std::sort(d.begin(), d.end());
+    const int median = d[(n - 1) / 2];
+    if (median < best_median) {
+      best_median = median;
+      best = a;
+    }
+  }
+  descriptor = cv::Mat(1, 32, CV_8U, const_cast<uint8_t*>(descriptors[best])).clone();
+  const auto ref = observations.find(reference->id);
+  const auto& [kf, feature] =
+      ref != observations.end() ? ref->second : observations.begin()->second;
+  const FrameGeometry& g = *kf->frame.geometry;
+  const double distance = (position - kf->CameraCentre()).norm();
+  const int level = kf->frame.keypoints[static_cast<size_t>(feature)].octave;
+  max_distance = distance * g.scale[static_cast<size_t>(level)];
+  min_distance = max_distance / g.scale.back();
+}
+
+KeyFrame::KeyFrame(uint64_t keyframe_id, Frame f) : id(keyframe_id), frame(std::move(f)) {}
+
+std::vector<KeyFrame*> KeyFrame::Covisible(size_t count) const {
+  if (best_covisible.size() <= count) return best_covisible;
+  return {best_covisible.begin(), best_covisible.begin() + static_cast<long>(count)};
+}
+
+int KeyFrame::TrackedPoints(int min_observations) const {
+  int n = 0;
+  for (const MapPoint* p : frame.map_points) {
+    if (p != nullptr && !p->bad && static_cast<int>(p->observations.size()) >= min_observations)
+      ++n;
+  }
+  return n;
+}
+
+KeyFrame* Map::AddKeyFrame(Frame frame) {
+  const uint64_t id = next_keyframe_id_++;
+  auto [it, inserted] = keyframes_.emplace(id, std::make_unique<KeyFrame>(id, std::move(frame)));
+  return it->second.get();
+}
+
+MapPoint* Map::AddMapPoint(const Eigen::Vector3d& position, KeyFrame* reference) {
+  const uint64_t id = next_point_id_++;
+  auto [it, inserted] = points_.emplace(id, std::make_unique<MapPoint>(id, position, reference));
+  return it->second.get();
+}
+
+void Map::AddObservation(MapPoint* point, KeyFrame* kf, int feature) {
+  point->observations[kf->id] = {kf, feature};
+  kf->frame.map_points[static_cast<size_t>(feature)] = point;
+}
+
+void Map::EraseObservation(MapPoint* point, KeyFrame* kf) {
+  const auto it = point->observations.find(kf->id);
+  if (it == point->observations.end()) return;
+  kf->frame.map_points[static_cast<size_t>(it->second.second)] = nullptr;
+  point->observations.erase(it);
+  if (point->reference == kf && !point->observations.empty())
+    point->reference = point->observations.begin()->second.first;
+  // ORB-SLAM counts an RGB-D observation twice and drops points with <= 2: one keyframe left.
+  if (point->observations.size() <= 1) SetBad(point);
+}
+
+void Map::SetBad(MapPoint* point) {
+  if (point->bad) return;
+  point->bad = true;
+  for (const auto& [kf_id, obs] : point->observations) {
+    obs.first->frame.map_points[static_cast<size_t>(obs.second)] = nullptr;
+  }
+  point->observations.clear();
+}
+
+void Map::Replace(MapPoint* point, MapPoint* by) {
+  if (point == by || point->bad) return;
+  const auto observations = point->observations;
+  point->observations.clear();
+  point->bad = true;
+  point->replaced_by = by;
+  for (const auto& [kf_id, obs] : observations) {
+    auto [kf, feature] = obs;
+    if (by->observations.count(kf_id)) {
+      kf->frame.map_points[static_cast<size_t>(feature)] = nullptr;  // already seen there
+    } else {
+      AddObservation(by, kf, feature);
+    }
+  }
+  by->visible += point->visible;
+  by->found += point->found;
+  by->UpdateFromObservations();
+}
+
+void Map::UpdateConnections(KeyFrame* kf) {
+  std::map<uint64_t, int> counts;
+  std::map<uint64_t, KeyFrame*> by_id;
+  for (const MapPoint* p : kf->frame.map_points) {
+    if (p == nullptr || p->bad) continue;
+    for (const auto& [other_id, obs] : p->observations) {
+      if (other_id == kf->id || obs.first->bad) continue;
+      ++counts[other_id];
+      by_id[other_id] = obs.first;
+    }
+  }
+  // Old edges of this keyframe go away from the other side too.
+  for (const auto& [other_id, weight] : kf->covisibility) {
+    const auto it = keyframes_.find(other_id);
+    if (it != keyframes_.end()) it->second->covisibility.erase(kf->id);
+  }
+  kf->covisibility.clear();
+  constexpr int kMinShared = 15;
+  uint64_t best_id = 0;
+  int best_count = -1;
+  for (const auto& [other_id, count] : counts) {
+    if (count > best_count) {
+      best_count = count;
+      best_id = other_id;
+    }
+    if (count >= kMinShared) kf->covisibility[other_id] = count;
+  }
+  if (kf->covisibility.empty() && best_count > 0) kf->covisibility[best_id] = best_count;
+  auto sort_best = [&](KeyFrame* k) {
+    k->best_covisible.clear();
+    std::vector<std::pair<int, uint64_t>> order;
+    for (const auto& [id, w] : k->covisibility) order.emplace_back(-w, id);
+    std::sort(order.begin(), order.end());
+    for (const auto& [w, id] : order) k->best_covisible.push_back(keyframes_.at(id).get());
+  };
+  for (const auto& [other_id, count] : kf->covisibility) {
+    KeyFrame* other = by_id[other_id];
+    other->covisibility[kf->id] = count;
+    sort_best(other);
+  }
+  sort_best(kf);
+  if (kf->parent == nullptr && kf->id != 0 && best_count > 0) kf->parent = by_id[best_id];
+}
+
+void Map::SetBad(KeyFrame* kf) {
+  if (kf->id == 0 || kf->bad) return;
+  kf->bad = true;
+  for (MapPoint* p : std::vector<MapPoint*>(kf->frame.map_points)) {
+    if (p != nullptr && !p->bad) EraseObservation(p, kf);
+  }
+  for (const auto& [other_id, weight] : kf->covisibility) {
+    KeyFrame* other = keyframes_.at(other_id).get();
+    other->covisibility.erase(kf->id);
+    other->best_covisible.erase(
+        std::remove(other->best_covisible.begin(), other->best_covisible.end(), kf),
+        other->best_covisible.end());
+  }
+  kf->covisibility.clear();
+  kf->best_covisible.clear();
+  // Children hang from this keyframe's parent now; frames tracked relative to it keep their
+  // pose through T_camera_parent.
+  KeyFrame* parent = kf->parent;
+  while (parent != nullptr && parent->bad) parent = parent->parent;
+  for (auto& [id, other] : keyframes_) {
+    if (other->parent == kf) other->parent = parent;
+  }
+  if (parent != nullptr) kf->T_camera_parent = kf->pose() * parent->pose().inverse();
+  kf->parent = parent;
+}
+
+size_t Map::GoodKeyFrames() const {
+  size_t n = 0;
+  for (const auto& [id, kf] : keyframes_) n += !kf->bad;
+  return n;
+}
+
+size_t Map::GoodPoints() const {
+  size_t n = 0;
+  for (const auto& [id, p] : points_) n += !p->bad;
+  return n;
+}
+
+}  // namespace sdoslam

@@ -1,0 +1,196 @@
+#include "sdoslam/mapping/local_mapper.h"
+
+#include <set>
+
+#include "sdoslam/core/error.h"
+#include "sdoslam/tracking/matcher.h"
+
+namespace sdoslam {
+
+void LocalMapperOptions::Check() const {
+  if (fuse_neighbours < 0) throw Error("mapping.fuse_neighbours must be >= 0");
+  if (!(min_found_ratio >= 0 && min_found_ratio < 1))
+    throw Error("mapping.min_found_ratio must be in [0, 1)");
+  if (!(redundant_ratio > 0 && redundant_ratio <= 1))
+    throw Error("mapping.redundant_ratio must be in (0, 1]");
+}
+
+LocalMapper::LocalMapper(Map* map, const LocalMapperOptions& options)
+    : map_(map), options_(options) {
+  options_.Check();
+}
+
+MappingResult LocalMapper::Process(KeyFrame* kf) {
+  MappingResult result;
+  InsertKeyFrame(kf);
+  result.culled_points = CullRecentPoints(kf);
+  result.fused_points = FuseWithNeighbours(kf);
+  if (map_->GoodKeyFrames() > 2) LocalBundleAdjustment(kf, &result);
+  result.culled_keyframes = CullKeyFrames(kf);
+  return result;
+}
+
+void LocalMapper::InsertKeyFrame(KeyFrame* kf) {
+  for (size_t i = 0; i < kf->frame.size(); ++i) {
+    MapPoint* p = kf->frame.map_points[i];
+    if (p == nullptr) continue;
+    if (p->bad) {
+      kf->frame.map_points[i] = nullptr;
+      continue;
+    }
+    const auto it = p->observations.find(kf->id);
+    if (it == p->observations.end()) {
+      map_->AddObservation(p, kf, static_cast<int>(i));
+      p->UpdateFromObservations();
+    } else if (it->second.second == static_cast<int>(i)) {
+      recent_points_.push_back(p);  // created from this keyframe's depth
+    } else {
+      kf->frame.map_points[i] = nullptr;  // a second feature matched to the same point
+    }
+  }
+  map_->UpdateConnections(kf);
+}
+
+int LocalMapper::CullRecentPoints(KeyFrame* kf) {
+  int culled = 0;
+  std::vector<MapPoint*> keep;
+  for (MapPoint* p : recent_points_) {
+    if (p->bad) continue;
+    const uint64_t age = kf->id - p->first_keyframe_id;
+    if (p->FoundRatio() < options_.min_found_ratio || (age >= 2 && p->observations.size() < 2)) {
+      map_->SetBad(p);
+      ++culled;
+    } else if (age < 3) {
+      keep.push_back(p);  // still on probation
+    }
+  }
+  recent_points_ = std::move(keep);
+  return culled;
+}
+
+int LocalMapper::FuseWithNeighbours(KeyFrame* kf) {
+  std::vector<KeyFrame*> targets;
+  std::set<uint64_t> chosen{kf->id};
+  for (KeyFrame* n : kf->Covisible(static_cast<size_t>(options_.fuse_neighbours))) {
+    if (n->bad || !chosen.insert(n->id).second) continue;
+    targets.push_back(n);
+    for (KeyFrame* m : n->Covisible(5)) {
+      if (!m->bad && chosen.insert(m->id).second) targets.push_back(m);
+    }
+  }
+  int fused = 0;
+  for (KeyFrame* target : targets) fused += Fuse(*map_, target, kf->frame.map_points);
+  std::vector<MapPoint*> candidates;
+  std::set<uint64_t> seen;
+  for (KeyFrame* target : targets) {
+    for (MapPoint* p : target->frame.map_points) {
+      if (p != nullptr && !p->bad && seen.insert(p->id).second) candidates.push_back(p);
+    }
+  }
+  fused += Fuse(*map_, kf, candidates);
+  for (MapPoint* p : kf->frame.map_points) {
+    if (p != nullptr && !p->bad) p->UpdateFromObservations();
+  }
+  map_->UpdateConnections(kf);
+  return fused;
+}
+
+void LocalMapper::LocalBundleAdjustment(KeyFrame* kf, MappingResult* result) {
+  std::vector<KeyFrame*> local{kf};
+  std::set<uint64_t> local_ids{kf->id};
+  for (KeyFrame* n : kf->best_covisible) {
+    if (!n->bad && local_ids.insert(n->id).second) local.push_back(n);
+  }
+  std::vector<MapPoint*> points;
+  std::set<uint64_t> point_ids;
+  for (KeyFrame* k : local) {
+    for (MapPoint* p : k->frame.map_points) {
+      if (p != nullptr && !p->bad && point_ids.insert(p->id).second) points.push_back(p);
+    }
+  }
+  std::vector<KeyFrame*> fixed;
+  std::set<uint64_t> fixed_ids;
+  for (MapPoint* p : points) {
+    for (const auto& [kf_id, obs] : p->observations) {
+      if (!local_ids.count(kf_id) && !obs.first->bad && fixed_ids.insert(kf_id).second)
+        fixed.push_back(obs.first);
+    }
+  }
+  std::sort(fixed.begin(), fixed.end(),
+            [](const KeyFrame* a, const KeyFrame* b) { return a->id < b->id; });
+
+  BundleAdjustmentProblem ba;
+  std::map<uint64_t, int> pose_index;
+  for (KeyFrame* k : local) {
+    pose_index[k->id] = static_cast<int>(ba.poses.size());
+    ba.poses.push_back(k->pose());
+    ba.pose_fixed.push_back(k->id == 0);  // the first keyframe holds the gauge
+  }
+  for (KeyFrame* k : fixed) {
+    pose_index[k->id] = static_cast<int>(ba.poses.size());
+    ba.poses.push_back(k->pose());
+    ba.pose_fixed.push_back(true);
+  }
+  struct Link {
+    MapPoint* point;
+    KeyFrame* kf;
+  };
+  std::vector<Link> links;
+  for (size_t pi = 0; pi < points.size(); ++pi) {
+    ba.points.push_back(points[pi]->position);
+    for (const auto& [kf_id, obs] : points[pi]->observations) {
+      const auto it = pose_index.find(kf_id);
+      if (it == pose_index.end()) continue;
+      ba.observations.push_back(
+          {it->second, static_cast<int>(pi), obs.first->frame.Observation(obs.second)});
+      links.push_back({points[pi], obs.first});
+    }
+  }
+  const std::vector<bool> inlier =
+      BundleAdjust(local.front()->frame.geometry->intrinsics, &ba, options_.bundle_adjustment);
+  for (size_t k = 0; k < local.size(); ++k) local[k]->frame.T_camera_world = ba.poses[k];
+  for (size_t pi = 0; pi < points.size(); ++pi) points[pi]->position = ba.points[pi];
+  for (size_t o = 0; o < links.size(); ++o) {
+    if (inlier[o] || links[o].point->bad) continue;
+    map_->EraseObservation(links[o].point, links[o].kf);
+    ++result->removed_observations;
+  }
+  for (MapPoint* p : points) {
+    if (!p->bad) p->UpdateFromObservations();
+  }
+  result->local_keyframes = static_cast<int>(local.size());
+  result->fixed_keyframes = static_cast<int>(fixed.size());
+  result->local_points = static_cast<int>(points.size());
+}
+
+int LocalMapper::CullKeyFrames(KeyFrame* kf) {
+  int culled = 0;
+  for (KeyFrame* candidate : std::vector<KeyFrame*>(kf->best_covisible)) {
+    if (candidate->id == 0 || candidate->bad || candidate == kf) continue;
+    int points = 0, redundant = 0;
+    for (size_t i = 0; i < candidate->frame.size(); ++i) {
+      const MapPoint* p = candidate->frame.map_points[i];
+      if (p == nullptr || p->bad) continue;
+      const float depth = candidate->frame.depth[i];
+      if (depth <= 0 || depth > candidate->frame.geometry->close_depth) continue;
+      ++points;
+      if (p->observations.size() <= 3) continue;
+      const int level = candidate->frame.keypoints[i].octave;
+      int others = 0;
+      for (const auto& [other_id, obs] : p->observations) {
+        if (other_id == candidate->id) continue;
+        if (obs.first->frame.keypoints[static_cast<size_t>(obs.second)].octave <= level + 1 &&
+            ++others >= 3)
+          break;
+      }
+      redundant += others >= 3;
+    }
+    if (points > 0 && redundant > options_.redundant_ratio * points) {
+      map_->SetBad(candidate);
+      ++culled;
+    }
+  }
+  return culled;
+}
+
+}  // namespace sdoslam

@@ -1,0 +1,47 @@
+#pragma once
+
+#include <vector>
+
+#include "sdoslam/map/map.h"
+#include "sdoslam/optim/optimizer.h"
+
+namespace sdoslam {
+
+struct LocalMapperOptions {
+  int fuse_neighbours = 10;       // covisible keyframes searched for duplicate points
+  double min_found_ratio = 0.25;  // recent points found less often than this are culled
+  double redundant_ratio = 0.9;   // keyframes with this share of redundant points are culled
+  BundleAdjustmentOptions bundle_adjustment;
+  void Check() const;
+};
+
+// Statistics of one processed keyframe, for the run log.
+struct MappingResult {
+  int culled_points = 0;
+  int fused_points = 0;
+  int local_keyframes = 0, fixed_keyframes = 0, local_points = 0;
+  int removed_observations = 0;
+  int culled_keyframes = 0;
+};
+
+// ORB-SLAM's local mapping for RGB-D: insert a keyframe (observations, covisibility), cull
+// recent points that are rarely found, fuse duplicates with the neighbours, local bundle
+// adjustment (neighbours free, their other observers fixed), cull redundant keyframes.
+class LocalMapper {
+ public:
+  LocalMapper(Map* map, const LocalMapperOptions& options);
+  MappingResult Process(KeyFrame* keyframe);
+
+ private:
+  void InsertKeyFrame(KeyFrame* keyframe);
+  int CullRecentPoints(KeyFrame* keyframe);
+  int FuseWithNeighbours(KeyFrame* keyframe);
+  void LocalBundleAdjustment(KeyFrame* keyframe, MappingResult* result);
+  int CullKeyFrames(KeyFrame* keyframe);
+
+  Map* map_;
+  LocalMapperOptions options_;
+  std::vector<MapPoint*> recent_points_;
+};
+
+}  // namespace sdoslam

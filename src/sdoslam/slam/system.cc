@@ -1,0 +1,147 @@
+#include "sdoslam/slam/system.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <chrono>
+
+#include "sdoslam/core/error.h"
+
+namespace sdoslam {
+namespace {
+
+double MsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+      .count();
+}
+
+}  // namespace
+
+void SlamOptions::Check() const {
+  orb.Check();
+  tracking.Check();
+  mapping.Check();
+  if (!(bf > 0)) throw Error("rgbd.bf must be positive");
+  if (!(close_depth_baselines > 0)) throw Error("rgbd.close_depth_baselines must be positive");
+}
+
+SlamOptions ReadSlamOptions(ConfigMap& root) {
+  SlamOptions o;
+  if (auto s = root.Section("orb")) {
+    s->Read("num_features", &o.orb.num_features);
+    s->Read("scale_factor", &o.orb.scale_factor);
+    s->Read("num_levels", &o.orb.num_levels);
+    s->Read("fast_threshold", &o.orb.fast_threshold);
+    s->Read("min_fast_threshold", &o.orb.min_fast_threshold);
+    s->RejectUnknownKeys();
+  }
+  if (auto s = root.Section("rgbd")) {
+    s->Read("bf", &o.bf);
+    s->Read("close_depth_baselines", &o.close_depth_baselines);
+    s->RejectUnknownKeys();
+  }
+  if (auto s = root.Section("tracking")) {
+    s->Read("min_inliers", &o.tracking.min_inliers);
+    s->Read("max_frames_between_keyframes", &o.tracking.max_frames_between_keyframes);
+    s->Read("reference_ratio", &o.tracking.reference_ratio);
+    s->Read("projection_radius", &o.tracking.projection_radius);
+    s->RejectUnknownKeys();
+  }
+  if (auto s = root.Section("mapping")) {
+    s->Read("fuse_neighbours", &o.mapping.fuse_neighbours);
+    s->Read("redundant_ratio", &o.mapping.redundant_ratio);
+    s->Read("ba_iterations", &o.mapping.bundle_adjustment.iterations);
+    s->Read("ba_refine_iterations", &o.mapping.bundle_adjustment.refine_iterations);
+    s->RejectUnknownKeys();
+  }
+  try {
+    o.Check();
+  } catch (const Error& e) {
+    throw Error(root.origin() + ": " + e.what());
+  }
+  return o;
+}
+
+void WriteSlamOptions(const SlamOptions& o, YAML::Emitter* out) {
+  YAML::Emitter& y = *out;
+  y << YAML::Key << "orb" << YAML::Value << YAML::BeginMap << YAML::Key << "num_features"
+    << YAML::Value << o.orb.num_features << YAML::Key << "scale_factor" << YAML::Value
+    << o.orb.scale_factor << YAML::Key << "num_levels" << YAML::Value << o.orb.num_levels
+    << YAML::Key << "fast_threshold" << YAML::Value << o.orb.fast_threshold << YAML::Key
+    << "min_fast_threshold" << YAML::Value << o.orb.min_fast_threshold << YAML::EndMap;
+  y << YAML::Key << "rgbd" << YAML::Value << YAML::BeginMap << YAML::Key << "bf" << YAML::Value
+    << o.bf << YAML::Key << "close_depth_baselines" << YAML::Value << o.close_depth_baselines
+    << YAML::EndMap;
+  y << YAML::Key << "tracking" << YAML::Value << YAML::BeginMap << YAML::Key << "min_inliers"
+    << YAML::Value << o.tracking.min_inliers << YAML::Key << "max_frames_between_keyframes"
+    << YAML::Value << o.tracking.max_frames_between_keyframes << YAML::Key << "reference_ratio"
+    << YAML::Value << o.tracking.reference_ratio << YAML::Key << "projection_radius" << YAML::Value
+    << o.tracking.projection_radius << YAML::EndMap;
+  y << YAML::Key << "mapping" << YAML::Value << YAML::BeginMap << YAML::Key << "fuse_neighbours"
+    << YAML::Value << o.mapping.fuse_neighbours << YAML::Key << "redundant_ratio" << YAML::Value
+    << o.mapping.redundant_ratio << YAML::Key << "ba_iterations" << YAML::Value
+    << o.mapping.bundle_adjustment.iterations << YAML::Key << "ba_refine_iterations" << YAML::Value
+    << o.mapping.bundle_adjustment.refine_iterations << YAML::EndMap;
+}
+
+System::System(const CameraOptions& camera, const SlamOptions& options)
+    : options_(options), extractor_((options.Check(), options.orb)) {
+  const Camera cam(camera);
+  geometry_ = std::make_shared<FrameGeometry>(
+      cam, extractor_, options_.bf, options_.close_depth_baselines * options_.bf / camera.fx);
+  map_ = std::make_unique<Map>();
+  tracker_ = std::make_unique<Tracker>(map_.get(), options_.tracking);
+  mapper_ = std::make_unique<LocalMapper>(map_.get(), options_.mapping);
+}
+
+System::~System() = default;
+
+TrackingResult System::TrackRgbd(size_t index, double timestamp, const cv::Mat& bgr,
+                                 const cv::Mat& depth, FrameTiming* timing) {
+  const CameraOptions& c = geometry_->camera.options();
+  if (bgr.cols != c.width || bgr.rows != c.height || depth.size() != bgr.size()) {
+    throw Error("frame " + std::to_string(index) + ": images are not " + std::to_string(c.width) +
+                "x" + std::to_string(c.height));
+  }
+  auto start = std::chrono::steady_clock::now();
+  Frame frame(index, timestamp, bgr, depth, geometry_, extractor_);
+  FrameTiming t;
+  t.features_ms = MsSince(start);
+  start = std::chrono::steady_clock::now();
+  KeyFrame* keyframe = nullptr;
+  const TrackingResult result = tracker_->Track(std::move(frame), &keyframe);
+  t.tracking_ms = MsSince(start);
+  if (keyframe != nullptr) {
+    start = std::chrono::steady_clock::now();
+    mapper_->Process(keyframe);
+    t.mapping_ms = MsSince(start);
+  }
+  if (timing != nullptr) *timing = t;
+  return result;
+}
+
+Trajectory System::CameraTrajectory() const {
+  Trajectory out;
+  for (const Tracker::TrajectoryEntry& e : tracker_->trajectory()) {
+    if (e.reference == nullptr) continue;
+    Eigen::Isometry3d T_camera_reference = e.T_camera_reference;
+    const KeyFrame* reference = e.reference;
+    // A culled reference hands over to its parent through the pose it had relative to it.
+    while (reference->bad && reference->parent != nullptr) {
+      T_camera_reference = T_camera_reference * reference->T_camera_parent;
+      reference = reference->parent;
+    }
+    const Eigen::Isometry3d T_camera_world = T_camera_reference * reference->pose();
+    out.push_back({e.timestamp, T_camera_world.inverse()});
+  }
+  return out;
+}
+
+Trajectory System::KeyFrameTrajectory() const {
+  Trajectory out;
+  for (const auto& [id, kf] : map_->keyframes()) {
+    if (!kf->bad) out.push_back({kf->frame.timestamp, kf->pose().inverse()});
+  }
+  return out;
+}
+
+}  // namespace sdoslam

@@ -1,0 +1,237 @@
+#include "sdoslam/tracking/matcher.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+
+namespace sdoslam {
+namespace {
+
+constexpr int kHistogramBins = 30;
+
+// Orientation consistency: the rotation between two frames is common to all correct matches,
+// so only matches in the three most populated bins of angle change are kept.
+class RotationHistogram {
+ public:
+  void Add(float angle_a, float angle_b, int index) {
+    float d = angle_a - angle_b;
+    if (d < 0) d += 360.0f;
+    const int bin = std::min(kHistogramBins - 1, static_cast<int>(d * kHistogramBins / 360.0f));
+    bins_[static_cast<size_t>(bin)].push_back(index);
+  }
+  // Indices outside the three largest bins.
+  std::vector<int> Rejected() const {
+    std::array<size_t, kHistogramBins> order;
+    for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(),
+                     [&](size_t a, size_t b) { return bins_[a].size() > bins_[b].size(); });
+    std::vector<int> rejected;
+    const size_t largest = bins_[order[0]].size();
+    for (size_t r = 0; r < order.size(); ++r) {
+      // Keep a bin among the top three unless it is tiny compared with the top one.
+      const bool keep = r < 3 && bins_[order[r]].size() * 10 >= largest;
+      if (!keep) rejected.insert(rejected.end(), bins_[order[r]].begin(), bins_[order[r]].end());
+    }
+    return rejected;
+  }
+
+ private:
+  std::array<std::vector<int>, kHistogramBins> bins_;
+};
+
+}  // namespace
+
+int SearchByProjection(Frame& current, const Frame& last, double radius) {
+  const FrameGeometry& g = *current.geometry;
+  const Eigen::Isometry3d& T = current.T_camera_world;
+  RotationHistogram histogram;
+  int matches = 0;
+  for (size_t i = 0; i < last.size(); ++i) {
+    MapPoint* point = last.map_points[i];
+    if (point == nullptr || point->bad || last.outlier[i]) continue;
+    const Eigen::Vector3d p = T * point->position;
+    if (p.z() <= 0) continue;
+    const double u = g.intrinsics.fx * p.x() / p.z() + g.intrinsics.cx;
+    const double v = g.intrinsics.fy * p.y() / p.z() + g.intrinsics.cy;
+    if (!g.InImage(u, v)) continue;
+    const int level = last.keypoints[i].octave;
+    const auto candidates = current.FeaturesInArea(
+        u, v, radius * g.scale[static_cast<size_t>(level)], std::max(0, level - 1), level + 1);
+    int best = 256, best_index = -1;
+    for (int j : candidates) {
+      const MapPoint* existing = current.map_points[static_cast<size_t>(j)];
+      if (existing != nullptr && existing->found > 0 && !existing->bad) continue;
+      if (current.right_u[static_cast<size_t>(j)] >= 0) {
+        // The depth must agree too: compare the predicted and measured right coordinates.
+        const double ur = u - g.intrinsics.bf / p.z();
+        if (std::abs(ur - current.right_u[static_cast<size_t>(j)]) >
+            radius * g.scale[static_cast<size_t>(level)])
+          continue;
+      }
+      const int d =
+          DescriptorDistance(point->descriptor.ptr<uint8_t>(), current.descriptors.ptr<uint8_t>(j));
+      if (d < best) {
+        best = d;
+        best_index = j;
+      }
+    }
+    if (best_index >= 0 && best <= kMatchLoose) {
+      current.map_points[static_cast<size_t>(best_index)] = point;
+      histogram.Add(last.keypoints[i].angle,
+                    current.keypoints[static_cast<size_t>(best_index)].angle, best_index);
+      ++matches;
+    }
+  }
+  for (int j : histogram.Rejected()) {
+    current.map_points[static_cast<size_t>(j)] = nullptr;
+    --matches;
+  }
+  return matches;
+}
+
+int SearchLocalPoints(Frame& current, const std::vector<MapPoint*>& points, uint64_t frame_stamp,
+                      double radius_factor) {
+  const FrameGeometry& g = *current.geometry;
+  const Eigen::Isometry3d& T = current.T_camera_world;
+  const Eigen::Vector3d centre = current.CameraCentre();
+  int matches = 0;
+  for (MapPoint* point : points) {
+    if (point->bad || point->last_seen_frame == frame_stamp) continue;  // already matched
+    const Eigen::Vector3d p = T * point->position;
+    if (p.z() <= 0) continue;
+    const double u = g.intrinsics.fx * p.x() / p.z() + g.intrinsics.cx;
+    const double v = g.intrinsics.fy * p.y() / p.z() + g.intrinsics.cy;
+    if (!g.InImage(u, v)) continue;
+    const Eigen::Vector3d ray = point->position - centre;
+    const double distance = ray.norm();
+    if (distance < 0.8 * point->min_distance || distance > 1.2 * point->max_distance) continue;
+    const double view_cos = ray.dot(point->normal) / distance;
+    if (view_cos < 0.5) continue;
+    ++point->visible;
+    const int level = point->PredictLevel(distance, g);
+    const double radius =
+        radius_factor * (view_cos > 0.998 ? 2.5 : 4.0) * g.scale[static_cast<size_t>(level)];
+    const auto candidates = current.FeaturesInArea(u, v, radius, level - 1, level);
+    int best = 256, second = 256, best_index = -1, best_level = -1, second_level = -1;
+    for (int j : candidates) {
+      const MapPoint* existing = current.map_points[static_cast<size_t>(j)];
+      if (existing != nullptr && !existing->bad && existing->observations.size() > 0) continue;
+      if (current.right_u[static_cast<size_t>(j)] >= 0) {
+        const double ur = u - g.intrinsics.bf / p.z();
+        if (std::abs(ur - current.right_u[static_cast<size_t>(j)]) > radius) continue;
+      }
+      const int d =
+          DescriptorDistance(point->descriptor.ptr<uint8_t>(), current.descriptors.ptr<uint8_t>(j));
+      const int j_level = current.keypoints[static_cast<size_t>(j)].octave;
+      if (d < best) {
+        second = best;
+        second_level = best_level;
+        best = d;
+        best_level = j_level;
+        best_index = j;
+      } else if (d < second) {
+        second = d;
+        second_level = j_level;
+      }
+    }
+    if (best_index < 0 || best > kMatchLoose) continue;
+    if (best_level == second_level && best > 0.8 * second) continue;  // ambiguous
+    current.map_points[static_cast<size_t>(best_index)] = point;
+    point->last_seen_frame = frame_stamp;
+    ++matches;
+  }
+  return matches;
+}
+
+int SearchByDescriptor(Frame& current, const KeyFrame& keyframe) {
+  int matches = 0;
+  RotationHistogram histogram;
+  std::vector<int> best_for_feature(current.size(), 256);
+  for (size_t i = 0; i < keyframe.frame.size(); ++i) {
+    MapPoint* point = keyframe.frame.map_points[i];
+    if (point == nullptr || point->bad) continue;
+    int best = 256, second = 256, best_index = -1;
+    const uint8_t* d_kf = keyframe.frame.descriptors.ptr<uint8_t>(static_cast<int>(i));
+    for (size_t j = 0; j < current.size(); ++j) {
+      const int d = DescriptorDistance(d_kf, current.descriptors.ptr<uint8_t>(static_cast<int>(j)));
+      if (d < best) {
+        second = best;
+        best = d;
+        best_index = static_cast<int>(j);
+      } else if (d < second) {
+        second = d;
+      }
+    }
+    if (best_index < 0 || best > kMatchStrict || best > 0.7 * second) continue;
+    if (best >= best_for_feature[static_cast<size_t>(best_index)]) continue;
+    if (current.map_points[static_cast<size_t>(best_index)] == nullptr) ++matches;
+    best_for_feature[static_cast<size_t>(best_index)] = best;
+    current.map_points[static_cast<size_t>(best_index)] = point;
+    histogram.Add(keyframe.frame.keypoints[i].angle,
+                  current.keypoints[static_cast<size_t>(best_index)].angle, best_index);
+  }
+  for (int j : histogram.Rejected()) {
+    if (current.map_points[static_cast<size_t>(j)] != nullptr) --matches;
+    current.map_points[static_cast<size_t>(j)] = nullptr;
+  }
+  return matches;
+}
+
+int Fuse(Map& map, KeyFrame* kf, const std::vector<MapPoint*>& points) {
+  const FrameGeometry& g = *kf->frame.geometry;
+  const Eigen::Isometry3d& T = kf->pose();
+  const Eigen::Vector3d centre = kf->CameraCentre();
+  int fused = 0;
+  for (MapPoint* point : points) {
+    if (point == nullptr || point->bad || point->observations.count(kf->id)) continue;
+    const Eigen::Vector3d p = T * point->position;
+    if (p.z() <= 0) continue;
+    const double u = g.intrinsics.fx * p.x() / p.z() + g.intrinsics.cx;
+    const double v = g.intrinsics.fy * p.y() / p.z() + g.intrinsics.cy;
+    if (!g.InImage(u, v)) continue;
+    const Eigen::Vector3d ray = point->position - centre;
+    const double distance = ray.norm();
+    if (distance < 0.8 * point->min_distance || distance > 1.2 * point->max_distance) continue;
+    if (ray.dot(point->normal) < 0.5 * distance) continue;
+    const int level = point->PredictLevel(distance, g);
+    const double radius = 3.0 * g.scale[static_cast<size_t>(level)];
+    int best = 256, best_index = -1;
+    for (int j : kf->frame.FeaturesInArea(u, v, radius)) {
+      const size_t k = static_cast<size_t>(j);
+      const int j_level = kf->frame.keypoints[k].octave;
+      if (j_level < level - 1 || j_level > level) continue;
+      // Reprojection error gate (χ² on the whitened error, as in ORB-SLAM's Fuse).
+      const double du = u - kf->frame.undistorted[k].x, dv = v - kf->frame.undistorted[k].y;
+      double e2 = du * du + dv * dv;
+      double threshold = kChi2Mono;
+      if (kf->frame.right_u[k] >= 0) {
+        const double dr = u - g.intrinsics.bf / p.z() - kf->frame.right_u[k];
+        e2 += dr * dr;
+        threshold = kChi2Stereo;
+      }
+      if (e2 * g.inv_sigma2[static_cast<size_t>(j_level)] > threshold) continue;
+      const int d = DescriptorDistance(point->descriptor.ptr<uint8_t>(),
+                                       kf->frame.descriptors.ptr<uint8_t>(j));
+      if (d < best) {
+        best = d;
+        best_index = j;
+      }
+    }
+    if (best_index < 0 || best > kMatchStrict) continue;
+    MapPoint* existing = kf->frame.map_points[static_cast<size_t>(best_index)];
+    if (existing != nullptr && !existing->bad) {
+      if (existing->observations.size() > point->observations.size()) {
+        map.Replace(point, existing);
+      } else {
+        map.Replace(existing, point);
+      }
+    } else {
+      map.AddObservation(point, kf, best_index);
+      point->UpdateFromObservations();
+    }
+    ++fused;
+  }
+  return fused;
+}
+
+}  // namespace sdoslam

@@ -1,0 +1,33 @@
+#pragma once
+
+#include <vector>
+
+#include "sdoslam/map/map.h"
+
+namespace sdoslam {
+
+// Descriptor thresholds of ORB-SLAM (Hamming distance of 256-bit descriptors).
+inline constexpr int kMatchStrict = 50;
+inline constexpr int kMatchLoose = 100;
+
+// Projects the map points matched in `last` (at their world positions) into `current` at its
+// predicted pose and matches them within `radius` px × the keypoint's scale, keeping the
+// matches whose orientation change agrees with the dominant ones. Returns the number matched.
+int SearchByProjection(Frame& current, const Frame& last, double radius);
+
+// Matches `points` (the local map) not yet matched in `current`, predicted in view at
+// `current`'s pose. `radius_factor` scales the search window (1 normally). Returns the number
+// matched; counts each predicted-visible point's `visible`.
+int SearchLocalPoints(Frame& current, const std::vector<MapPoint*>& points, uint64_t frame_stamp,
+                      double radius_factor);
+
+// Brute-force descriptor matching of `current` against the map points of `keyframe` with
+// Lowe's ratio test: a fallback when no pose prediction is good enough.
+int SearchByDescriptor(Frame& current, const KeyFrame& keyframe);
+
+// Projects `points` into `keyframe`; where one lands on a feature with a similar descriptor,
+// the point is added to it, or fused with the point the feature already has (the one with
+// more observations stays). Returns the number of fusions and additions.
+int Fuse(Map& map, KeyFrame* keyframe, const std::vector<MapPoint*>& points);
+
+}  // namespace sdoslam

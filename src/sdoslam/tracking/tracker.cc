@@ -1,0 +1,307 @@
+#include "sdoslam/tracking/tracker.h"
+
+#include <algorithm>
+#include <set>
+
+#include "sdoslam/core/error.h"
+#include "sdoslam/optim/optimizer.h"
+#include "sdoslam/tracking/matcher.h"
+
+namespace sdoslam {
+
+const char* ToString(TrackingState state) {
+  switch (state) {
+    case TrackingState::kNotInitialized:
+      return "not_initialized";
+    case TrackingState::kOk:
+      return "ok";
+    case TrackingState::kLost:
+      return "lost";
+  }
+  return "?";
+}
+
+void TrackerOptions::Check() const {
+  if (min_initial_depth_features < 10)
+    throw Error("tracking.min_initial_depth_features must be >= 10");
+  if (min_inliers < 6) throw Error("tracking.min_inliers must be >= 6");
+  if (max_frames_between_keyframes < 1)
+    throw Error("tracking.max_frames_between_keyframes must be >= 1");
+  if (!(reference_ratio > 0 && reference_ratio < 1))
+    throw Error("tracking.reference_ratio must be in (0, 1)");
+  if (!(projection_radius > 0)) throw Error("tracking.projection_radius must be positive");
+}
+
+Tracker::Tracker(Map* map, const TrackerOptions& options) : map_(map), options_(options) {
+  options_.Check();
+}
+
+TrackingResult Tracker::Track(Frame frame, KeyFrame** new_keyframe) {
+  *new_keyframe = nullptr;
+  ++frame_stamp_;
+  TrackingResult result;
+  result.index = frame.index;
+  result.timestamp = frame.timestamp;
+  result.features = static_cast<int>(frame.size());
+  for (size_t i = 0; i < frame.size(); ++i)
+    result.features_with_depth += frame.HasDepth(static_cast<int>(i));
+
+  if (state_ == TrackingState::kNotInitialized) {
+    if (Initialize(frame)) {
+      state_ = TrackingState::kOk;
+      result.keyframe = true;
+      *new_keyframe = last_keyframe_;
+      result.inliers = last_keyframe_->TrackedPoints(1);
+    }
+    result.state = state_;
+    trajectory_.push_back({frame.timestamp, state_ == TrackingState::kOk ? reference_ : nullptr,
+                           Eigen::Isometry3d::Identity()});
+    if (state_ == TrackingState::kOk) last_frame_ = std::make_unique<Frame>(last_keyframe_->frame);
+    return result;
+  }
+
+  bool ok = false;
+  if (state_ == TrackingState::kOk) {
+    MakeTemporaryPoints();
+    if (has_velocity_) {
+      frame.T_camera_world = velocity_ * last_frame_->T_camera_world;
+      ok = TrackWithMotionModel(frame);
+    }
+    if (!ok) {
+      frame.T_camera_world = last_frame_->T_camera_world;
+      ok = TrackReferenceKeyFrame(frame);
+    }
+  } else {
+    // Lost: try the last keyframe from the last known pose (relocalisation comes later).
+    frame.T_camera_world = last_frame_->T_camera_world;
+    ok = TrackReferenceKeyFrame(frame);
+  }
+  if (ok) ok = TrackLocalMap(frame, &result);
+  temporary_points_.clear();
+  for (size_t i = 0; i < frame.size(); ++i) {
+    MapPoint*& p = frame.map_points[i];
+    if (p != nullptr && (p->bad || p->observations.empty() || frame.outlier[i])) p = nullptr;
+  }
+
+  state_ = ok ? TrackingState::kOk : TrackingState::kLost;
+  result.state = state_;
+  result.T_camera_world = frame.T_camera_world;
+  if (ok) {
+    has_velocity_ = true;
+    velocity_ = frame.T_camera_world * last_frame_->T_camera_world.inverse();
+    if (NeedKeyFrame(frame, result.inliers)) {
+      *new_keyframe = CreateKeyFrame(frame);
+      result.keyframe = true;
+    }
+    trajectory_.push_back(
+        {frame.timestamp, reference_, frame.T_camera_world * reference_->pose().inverse()});
+    last_frame_ = std::make_unique<Frame>(result.keyframe ? (*new_keyframe)->frame : frame);
+  } else {
+    has_velocity_ = false;
+    trajectory_.push_back({frame.timestamp, nullptr, Eigen::Isometry3d::Identity()});
+  }
+  return result;
+}
+
+bool Tracker::Initialize(Frame& frame) {
+  int with_depth = 0;
+  for (size_t i = 0; i < frame.size(); ++i) with_depth += frame.HasDepth(static_cast<int>(i));
+  if (with_depth < options_.min_initial_depth_features) return false;
+  frame.T_camera_world = Eigen::Isometry3d::Identity();  // the first camera defines the world
+  KeyFrame* kf = map_->AddKeyFrame(frame);
+  for (size_t i = 0; i < kf->frame.size(); ++i) {
+    if (!kf->frame.HasDepth(static_cast<int>(i))) continue;
+    MapPoint* p = map_->AddMapPoint(kf->frame.UnprojectWorld(static_cast<int>(i)), kf);
+    map_->AddObservation(p, kf, static_cast<int>(i));
+    p->UpdateFromObservations();
+  }
+  reference_ = last_keyframe_ = kf;
+  last_keyframe_frame_ = frame.index;
+  return true;
+}
+
+void Tracker::MakeTemporaryPoints() {
+  // ORB-SLAM2's "visual odometry" points: close features of the last frame that have no map
+  // point get a temporary one from their depth, so the motion model has more to match.
+  Frame& last = *last_frame_;
+  std::vector<std::pair<float, int>> by_depth;
+  for (size_t i = 0; i < last.size(); ++i) {
+    if (last.HasDepth(static_cast<int>(i)))
+      by_depth.emplace_back(last.depth[i], static_cast<int>(i));
+  }
+  std::sort(by_depth.begin(), by_depth.end());
+  int count = 0;
+  for (const auto& [depth, i] : by_depth) {
+    MapPoint*& existing = last.map_points[static_cast<size_t>(i)];
+    if (existing == nullptr || existing->bad) {
+      auto p =
+          std::make_unique<MapPoint>(static_cast<uint64_t>(-1), last.UnprojectWorld(i), reference_);
+      p->descriptor = last.descriptors.row(i).clone();
+      p->found = 0;
+      existing = p.get();
+      last.outlier[static_cast<size_t>(i)] = false;
+      temporary_points_.push_back(std::move(p));
+    }
+    if (++count > options_.min_close_points && depth > last.geometry->close_depth) break;
+  }
+}
+
+int Tracker::OptimizeAndCount(Frame& frame) {
+  std::vector<int> index;
+  std::vector<Eigen::Vector3d> points;
+  std::vector<PointObservation> observations;
+  for (size_t i = 0; i < frame.size(); ++i) {
+    const MapPoint* p = frame.map_points[i];
+    if (p == nullptr || p->bad) continue;
+    index.push_back(static_cast<int>(i));
+    points.push_back(p->position);
+    observations.push_back(frame.Observation(static_cast<int>(i)));
+  }
+  if (index.size() < 10) return 0;
+  const PoseOptimizationResult r =
+      OptimizePose(frame.geometry->intrinsics, frame.T_camera_world, points, observations);
+  frame.T_camera_world = r.T_camera_world;
+  int inliers = 0;
+  for (size_t k = 0; k < index.size(); ++k) {
+    const size_t i = static_cast<size_t>(index[k]);
+    frame.outlier[i] = !r.inlier[k];
+    if (r.inlier[k]) {
+      ++inliers;
+    } else {
+      frame.map_points[i] = nullptr;
+    }
+  }
+  return inliers;
+}
+
+bool Tracker::TrackWithMotionModel(Frame& frame) {
+  std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
+  int matches = SearchByProjection(frame, *last_frame_, options_.projection_radius);
+  if (matches < 20) {
+    std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
+    matches = SearchByProjection(frame, *last_frame_, 2 * options_.projection_radius);
+  }
+  if (matches < 20) return false;
+  return OptimizeAndCount(frame) >= 10;
+}
+
+bool Tracker::TrackReferenceKeyFrame(Frame& frame) {
+  std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
+  const int matches = SearchByDescriptor(frame, *reference_);
+  if (matches < 15) return false;
+  return OptimizeAndCount(frame) >= 10;
+}
+
+bool Tracker::TrackLocalMap(Frame& frame, TrackingResult* result) {
+  // Local keyframes: those that see the matched points, plus their best neighbours.
+  std::map<uint64_t, int> votes;
+  for (MapPoint* p : frame.map_points) {
+    if (p == nullptr || p->bad) continue;
+    for (const auto& [kf_id, obs] : p->observations) ++votes[kf_id];
+  }
+  std::vector<KeyFrame*> local;
+  std::set<uint64_t> in_local;
+  KeyFrame* best = nullptr;
+  int best_votes = 0;
+  for (const auto& [kf_id, count] : votes) {
+    KeyFrame* kf = map_->keyframes().at(kf_id).get();
+    if (kf->bad) continue;
+    local.push_back(kf);
+    in_local.insert(kf_id);
+    if (count > best_votes) {
+      best_votes = count;
+      best = kf;
+    }
+  }
+  const size_t direct = local.size();
+  for (size_t k = 0; k < direct && local.size() < 80; ++k) {
+    for (KeyFrame* neighbour : local[k]->Covisible(10)) {
+      if (!neighbour->bad && in_local.insert(neighbour->id).second) local.push_back(neighbour);
+    }
+    if (local[k]->parent != nullptr && !local[k]->parent->bad &&
+        in_local.insert(local[k]->parent->id).second) {
+      local.push_back(local[k]->parent);
+    }
+  }
+  if (best != nullptr) reference_ = best;
+
+  // Local points, not yet matched in this frame.
+  for (size_t i = 0; i < frame.size(); ++i) {
+    MapPoint* p = frame.map_points[i];
+    if (p == nullptr || p->bad) continue;
+    p->last_seen_frame = frame_stamp_;
+    ++p->visible;
+  }
+  std::vector<MapPoint*> points;
+  std::set<uint64_t> seen;
+  for (KeyFrame* kf : local) {
+    for (MapPoint* p : kf->frame.map_points) {
+      if (p != nullptr && !p->bad && seen.insert(p->id).second) points.push_back(p);
+    }
+  }
+  SearchLocalPoints(frame, points, frame_stamp_, 1.0);
+  for (const MapPoint* p : frame.map_points) result->matches += p != nullptr && !p->bad;
+  OptimizeAndCount(frame);
+  int inliers = 0;
+  for (size_t i = 0; i < frame.size(); ++i) {
+    MapPoint* p = frame.map_points[i];
+    if (p == nullptr || p->bad || frame.outlier[i]) continue;
+    ++p->found;
+    if (!p->observations.empty()) ++inliers;
+  }
+  result->inliers = inliers;
+  return inliers >= options_.min_inliers;
+}
+
+bool Tracker::NeedKeyFrame(const Frame& frame, int inliers) const {
+  const size_t keyframes = map_->GoodKeyFrames();
+  const int min_observations = keyframes == 1 ? 1 : keyframes == 2 ? 2 : 3;
+  const int reference_matches = reference_->TrackedPoints(min_observations);
+  int tracked_close = 0, untracked_close = 0;
+  for (size_t i = 0; i < frame.size(); ++i) {
+    if (!frame.HasDepth(static_cast<int>(i)) || frame.depth[i] > frame.geometry->close_depth)
+      continue;
+    if (frame.map_points[i] != nullptr && !frame.outlier[i]) {
+      ++tracked_close;
+    } else {
+      ++untracked_close;
+    }
+  }
+  const bool need_close = tracked_close < options_.min_close_points &&
+                          untracked_close > options_.close_points_to_create;
+  const bool long_since =
+      frame.index >=
+      last_keyframe_frame_ + static_cast<size_t>(options_.max_frames_between_keyframes);
+  // Local mapping runs inline or keeps up, so it is always ready for a keyframe (ORB-SLAM's c1b).
+  const bool mapping_ready = true;
+  const bool weak = inliers < 0.25 * reference_matches || need_close;
+  const bool c2 =
+      (inliers < options_.reference_ratio * reference_matches || need_close) && inliers > 15;
+  return (long_since || mapping_ready || weak) && c2;
+}
+
+KeyFrame* Tracker::CreateKeyFrame(Frame& frame) {
+  KeyFrame* kf = map_->AddKeyFrame(frame);
+  // New close points from depth, nearest first; at least min_close_points of them.
+  std::vector<std::pair<float, int>> by_depth;
+  for (size_t i = 0; i < kf->frame.size(); ++i) {
+    if (kf->frame.HasDepth(static_cast<int>(i)))
+      by_depth.emplace_back(kf->frame.depth[i], static_cast<int>(i));
+  }
+  std::sort(by_depth.begin(), by_depth.end());
+  int count = 0;
+  for (const auto& [depth, i] : by_depth) {
+    MapPoint* existing = kf->frame.map_points[static_cast<size_t>(i)];
+    if (existing == nullptr || existing->bad) {
+      MapPoint* p = map_->AddMapPoint(kf->frame.UnprojectWorld(i), kf);
+      map_->AddObservation(p, kf, i);
+      p->UpdateFromObservations();
+    }
+    if (++count > options_.min_close_points && depth > kf->frame.geometry->close_depth) break;
+  }
+  reference_ = last_keyframe_ = kf;
+  last_keyframe_frame_ = frame.index;
+  return kf;
+}
+
+}  // namespace sdoslam

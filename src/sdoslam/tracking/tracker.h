@@ -1,0 +1,83 @@
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "sdoslam/map/map.h"
+
+namespace sdoslam {
+
+enum class TrackingState { kNotInitialized, kOk, kLost };
+const char* ToString(TrackingState state);
+
+struct TrackerOptions {
+  int min_initial_depth_features = 500;  // a first frame needs this many features with depth
+  int min_inliers = 30;                  // to call a frame tracked after the local map
+  int max_frames_between_keyframes = 30;
+  double reference_ratio = 0.75;    // keyframe when tracking less than this of the reference
+  int min_close_points = 100;       // keyframe when fewer close points are tracked...
+  int close_points_to_create = 70;  // ...and at least this many new ones could be made
+  double projection_radius = 15.0;  // px at level 0, motion-model search
+  void Check() const;
+};
+
+// Per-frame outcome, for the run log.
+struct TrackingResult {
+  size_t index = 0;
+  double timestamp = 0;
+  TrackingState state = TrackingState::kNotInitialized;
+  int features = 0;
+  int features_with_depth = 0;
+  int matches = 0;  // map points matched before the final pose optimisation
+  int inliers = 0;  // matched map points after it
+  bool keyframe = false;
+  Eigen::Isometry3d T_camera_world = Eigen::Isometry3d::Identity();
+};
+
+// Frame-to-map tracking of ORB-SLAM2 (RGB-D): constant-velocity prediction and projection
+// search against the last frame (with temporary points from its depth), a descriptor-matching
+// fallback against the reference keyframe, then the local map; motion-only pose optimisation
+// after each; the keyframe decision. Creates keyframes and their close map points; local
+// mapping refines them.
+class Tracker {
+ public:
+  Tracker(Map* map, const TrackerOptions& options);
+
+  // Tracks `frame`. When a keyframe is created it is returned through `new_keyframe`.
+  TrackingResult Track(Frame frame, KeyFrame** new_keyframe);
+
+  // Each frame's pose relative to its reference keyframe, so that the trajectory follows the
+  // keyframes as mapping refines them.
+  struct TrajectoryEntry {
+    double timestamp;
+    KeyFrame* reference;  // nullptr when the frame was not tracked
+    Eigen::Isometry3d T_camera_reference;
+  };
+  const std::vector<TrajectoryEntry>& trajectory() const { return trajectory_; }
+  TrackingState state() const { return state_; }
+
+ private:
+  bool Initialize(Frame& frame);
+  bool TrackWithMotionModel(Frame& frame);
+  bool TrackReferenceKeyFrame(Frame& frame);
+  bool TrackLocalMap(Frame& frame, TrackingResult* result);
+  int OptimizeAndCount(Frame& frame);
+  void MakeTemporaryPoints();
+  bool NeedKeyFrame(const Frame& frame, int inliers) const;
+  KeyFrame* CreateKeyFrame(Frame& frame);
+
+  Map* map_;
+  TrackerOptions options_;
+  TrackingState state_ = TrackingState::kNotInitialized;
+  std::unique_ptr<Frame> last_frame_;
+  KeyFrame* reference_ = nullptr;
+  KeyFrame* last_keyframe_ = nullptr;
+  size_t last_keyframe_frame_ = 0;
+  bool has_velocity_ = false;
+  Eigen::Isometry3d velocity_ = Eigen::Isometry3d::Identity();
+  std::vector<std::unique_ptr<MapPoint>> temporary_points_;
+  std::vector<TrajectoryEntry> trajectory_;
+  uint64_t frame_stamp_ = 0;
+};
+
+}  // namespace sdoslam
