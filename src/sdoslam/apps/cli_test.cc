@@ -4,6 +4,7 @@
 #include <array>
 #include <cstdio>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "sdoslam/io/trajectory.h"
 #include "sdoslam/testing/test_util.h"
@@ -119,12 +120,79 @@ TEST(CliEvalErrors, BadInputEndsInOneClearMessage) {
 
 TEST(CliDemo, RunsWithoutDataAndPrintsResults) {
   testing::TempDir dir;
-  const Result r = RunSdoslam("demo --out " + dir.path().string());
+  const Result r = RunSdoslam("demo --frames 40 --out " + dir.path().string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("ATE rmse"), std::string::npos);
+  EXPECT_NE(r.output.find("rendered 40 frames"), std::string::npos);
   EXPECT_TRUE(std::filesystem::exists(dir / "walking_xyz" / "groundtruth.txt"));
-  EXPECT_NE(r.output.find("rendered 150 frames"), std::string::npos);
+  EXPECT_TRUE(std::filesystem::exists(dir / "slam" / "static_room" / "CameraTrajectory.txt"));
   EXPECT_TRUE(std::filesystem::exists(dir / "plots" / "ate_over_time.png"));
+}
+
+class CliRun : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    // A short synthetic sequence to run on.
+    const Result r =
+        RunSdoslam("synth --scenario static_room --frames 35 --out " + (dir_ / "seq").string());
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+  }
+  std::string Run(const std::string& config, const std::string& dataset) {
+    last_ = RunSdoslam("run --dataset " + dataset + " --config " + config + " --out " +
+                       (dir_ / "out").string());
+    return last_.output;
+  }
+  testing::TempDir dir_;
+  Result last_;
+};
+
+TEST_F(CliRun, WritesTrajectoriesLogAndEvaluates) {
+  const std::string output = Run((dir_ / "seq" / "camera.yaml").string(), (dir_ / "seq").string());
+  ASSERT_EQ(last_.exit_code, 0) << output;
+  EXPECT_NE(output.find("35 frames: 35 tracked, 0 lost"), std::string::npos) << output;
+  EXPECT_NE(output.find("ATE rmse"), std::string::npos);
+  for (const char* f :
+       {"CameraTrajectory.txt", "KeyFrameTrajectory.txt", "config.yaml", "frames.csv"}) {
+    EXPECT_TRUE(std::filesystem::exists(dir_ / "out" / f)) << f;
+  }
+  EXPECT_EQ(ReadTumTrajectory(dir_ / "out" / "CameraTrajectory.txt").size(), 35u);
+  // The resolved config is itself a valid config.
+  const Result again = RunSdoslam("run --dataset " + (dir_ / "seq").string() + " --config " +
+                                  (dir_ / "out" / "config.yaml").string() +
+                                  " --max-frames 5 --out " + (dir_ / "out2").string());
+  EXPECT_EQ(again.exit_code, 0) << again.output;
+}
+
+TEST_F(CliRun, ImpossibleIntrinsicsAndUnknownKeysAreNamed) {
+  testing::WriteText(dir_ / "bad.yaml", "camera:\n  fx: -500\n  fy: 500\n  cx: 320\n  cy: 240\n");
+  std::string output = Run((dir_ / "bad.yaml").string(), (dir_ / "seq").string());
+  EXPECT_EQ(last_.exit_code, 1);
+  EXPECT_NE(output.find("camera.fx: focal length must be positive"), std::string::npos) << output;
+  testing::WriteText(dir_ / "typo.yaml",
+                     testing::ReadText(dir_ / "seq" / "camera.yaml") + "orb:\n  nfeatures: 5\n");
+  output = Run((dir_ / "typo.yaml").string(), (dir_ / "seq").string());
+  EXPECT_EQ(last_.exit_code, 1);
+  EXPECT_NE(output.find("unknown key 'orb.nfeatures'"), std::string::npos) << output;
+  EXPECT_FALSE(std::filesystem::exists(dir_ / "out" / "CameraTrajectory.txt"));
+}
+
+TEST_F(CliRun, EmptySequenceAndNoDepthAtTheStartAreClearErrors) {
+  testing::WriteText(dir_ / "seq" / "rgb.txt", "# no frames\n");
+  std::string output = Run((dir_ / "seq" / "camera.yaml").string(), (dir_ / "seq").string());
+  EXPECT_EQ(last_.exit_code, 1);
+  EXPECT_NE(output.find("rgb.txt: no frames listed"), std::string::npos) << output;
+
+  const Result fresh = RunSdoslam("synth --scenario static_room --frames 31 --no-noise --out " +
+                                  (dir_ / "nodepth").string());
+  ASSERT_EQ(fresh.exit_code, 0);
+  for (const auto& entry : std::filesystem::directory_iterator(dir_ / "nodepth" / "depth")) {
+    cv::imwrite(entry.path().string(), cv::Mat::zeros(480, 640, CV_16UC1));
+  }
+  output = Run((dir_ / "nodepth" / "camera.yaml").string(), (dir_ / "nodepth").string());
+  EXPECT_EQ(last_.exit_code, 1);
+  EXPECT_NE(output.find("the first 30 frames have too little depth to start the map"),
+            std::string::npos)
+      << output;
 }
 
 }  // namespace

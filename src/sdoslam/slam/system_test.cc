@@ -1,0 +1,118 @@
+// End-to-end: the whole SLAM system on sequences with known ground truth (COLMAP-style
+// "reconstruction near the truth").
+#include "sdoslam/slam/system.h"
+
+#include <gtest/gtest.h>
+
+#include "sdoslam/eval/metrics.h"
+#include "sdoslam/io/tum_dataset.h"
+#include "sdoslam/synth/sequence.h"
+#include "sdoslam/testing/test_util.h"
+
+namespace sdoslam {
+namespace {
+
+struct RunResult {
+  Trajectory trajectory;
+  std::vector<TrackingResult> frames;
+  size_t keyframes = 0;
+};
+
+RunResult RunSequence(const std::filesystem::path& folder, const CameraOptions& camera,
+                      size_t max_frames = 0, const std::set<size_t>& blank_frames = {}) {
+  const TumDataset dataset(folder, camera);
+  System slam(camera, SlamOptions{});
+  RunResult r;
+  const size_t n = max_frames > 0 ? std::min(max_frames, dataset.size()) : dataset.size();
+  for (size_t i = 0; i < n; ++i) {
+    RgbdFrame frame = dataset.Load(i);
+    if (blank_frames.count(i)) {  // a covered lens: nothing to track
+      frame.bgr.setTo(cv::Scalar(40, 40, 40));
+      frame.depth.setTo(0.0f);
+    }
+    r.frames.push_back(slam.TrackRgbd(i, frame.timestamp, frame.bgr, frame.depth));
+  }
+  r.trajectory = slam.CameraTrajectory();
+  r.keyframes = slam.map().GoodKeyFrames();
+  return r;
+}
+
+class SyntheticStatic : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(SyntheticStatic, TrajectoryWithinOneCentimetre) {
+  testing::TempDir dir;
+  synth::SynthOptions options;
+  options.scenario = "static_room";
+  options.motion = synth::ParseCameraMotion(GetParam());
+  options.frames = 200;
+  synth::WriteSequence(options, dir / "seq");
+  const RunResult run = RunSequence(dir / "seq", synth::SyntheticCamera());
+  ASSERT_EQ(run.trajectory.size(), 200u) << "frames were lost";
+  EXPECT_GT(run.keyframes, 5u);  // the map grew: mapping and BA took part
+  const AteResult ate =
+      ComputeAte(ReadTumTrajectory(dir / "seq" / "groundtruth.txt"), run.trajectory);
+  EXPECT_LE(ate.translation.rmse, 0.01) << GetParam();
+  RecordProperty("ate_rmse_m", std::to_string(ate.translation.rmse));
+}
+
+INSTANTIATE_TEST_SUITE_P(Motions, SyntheticStatic, ::testing::Values("xyz", "rpy", "halfsphere"));
+
+TEST(SlamReal, Fr2Desk50WithinOneCentimetre) {
+  const auto folder = testing::SharedDir() / "data" / "tum_fr2_desk_50";
+  if (!std::filesystem::is_directory(folder)) GTEST_SKIP() << "no " << folder;
+  const CameraOptions camera = LoadCameraConfig(testing::SourceDir() / "configs" / "tum_fr2.yaml");
+  const RunResult run = RunSequence(folder, camera);
+  ASSERT_EQ(run.trajectory.size(), 50u);
+  const AteResult ate = ComputeAte(ReadTumTrajectory(folder / "groundtruth.txt"), run.trajectory);
+  EXPECT_LE(ate.translation.rmse, 0.010);
+}
+
+TEST(SlamDeterminism, TwoRunsGiveBitIdenticalTrajectories) {
+  testing::TempDir dir;
+  synth::SynthOptions options;
+  options.scenario = "static_room";
+  options.motion = synth::CameraMotion::kHalfsphere;
+  options.frames = 90;
+  synth::WriteSequence(options, dir / "seq");
+  const RunResult a = RunSequence(dir / "seq", synth::SyntheticCamera());
+  const RunResult b = RunSequence(dir / "seq", synth::SyntheticCamera());
+  ASSERT_EQ(a.trajectory.size(), b.trajectory.size());
+  for (size_t i = 0; i < a.trajectory.size(); ++i) {
+    EXPECT_EQ(a.trajectory[i].timestamp, b.trajectory[i].timestamp);
+    EXPECT_TRUE((a.trajectory[i].T_world_camera.matrix().array() ==
+                 b.trajectory[i].T_world_camera.matrix().array())
+                    .all())
+        << "frame " << i;
+  }
+}
+
+TEST(SlamRobustness, UntrackableFrameIsLostAndTheRunGoesOn) {
+  testing::TempDir dir;
+  synth::SynthOptions options;
+  options.scenario = "static_room";
+  options.frames = 60;
+  synth::WriteSequence(options, dir / "seq");
+  const RunResult run = RunSequence(dir / "seq", synth::SyntheticCamera(), 0, {30});
+  ASSERT_EQ(run.frames.size(), 60u);
+  EXPECT_EQ(run.frames[29].state, TrackingState::kOk);
+  EXPECT_EQ(run.frames[30].state, TrackingState::kLost);
+  // Back on the reference keyframe right after: the camera has hardly moved.
+  EXPECT_EQ(run.frames[31].state, TrackingState::kOk);
+  EXPECT_EQ(run.frames[59].state, TrackingState::kOk);
+  EXPECT_EQ(run.trajectory.size(), 59u);  // the lost frame is left out, not given a made-up pose
+}
+
+TEST(SlamOptionsTest, ConfigSectionsAreReadAndUnknownKeysRejected) {
+  ConfigMap good =
+      ConfigMap::LoadString("orb:\n  num_features: 1500\ntracking:\n  min_inliers: 40\n", "c.yaml");
+  const SlamOptions o = ReadSlamOptions(good);
+  EXPECT_EQ(o.orb.num_features, 1500);
+  EXPECT_EQ(o.tracking.min_inliers, 40);
+  ConfigMap bad = ConfigMap::LoadString("orb:\n  num_feature: 1500\n", "c.yaml");
+  EXPECT_THROW(ReadSlamOptions(bad), Error);
+  ConfigMap impossible = ConfigMap::LoadString("orb:\n  scale_factor: 3.0\n", "c.yaml");
+  EXPECT_THROW(ReadSlamOptions(impossible), Error);
+}
+
+}  // namespace
+}  // namespace sdoslam
