@@ -61,7 +61,6 @@ RunSummary RunOnDataset(const std::filesystem::path& dataset_folder,
     }
     summary.lost += r.state == TrackingState::kLost;
     frame_ms.push_back(timing.features_ms + timing.tracking_ms);
-    if (r.keyframe && timing.mapping_ms > 0) mapping_ms.push_back(timing.mapping_ms);
     log +=
         fmt::format("{},{:.6f},{},{},{},{},{},{},{:.2f},{:.2f},{:.2f}\n", i, r.timestamp,
                     ToString(r.state), r.features, r.features_with_depth, r.matches, r.inliers,
@@ -69,7 +68,9 @@ RunSummary RunOnDataset(const std::filesystem::path& dataset_folder,
     spdlog::debug("frame {} {} inliers {} keyframe {}", i, ToString(r.state), r.inliers,
                   r.keyframe);
   }
+  slam.Shutdown();  // the mapping thread finishes the queued keyframes
   summary.trajectory = slam.CameraTrajectory();
+  mapping_ms = slam.MappingTimes();
   summary.tracked = summary.trajectory.size();
   summary.keyframes = slam.map().GoodKeyFrames();
   summary.map_points = slam.map().GoodPoints();

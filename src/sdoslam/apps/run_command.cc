@@ -30,8 +30,9 @@ void RunSlam(const RunArgs& args) {
   std::optional<ConfigMap> camera_section = root.Section("camera");
   if (!camera_section) throw Error(args.config + ": missing the 'camera:' section");
   const CameraOptions camera = ReadCameraOptions(*camera_section);
-  const SlamOptions options = ReadSlamOptions(root);
+  SlamOptions options = ReadSlamOptions(root);
   root.RejectUnknownKeys();
+  options.sequential = args.sequential;
   const RunSummary s = RunOnDataset(args.dataset, args.associations, camera, options,
                                     static_cast<size_t>(args.max_frames), args.out);
   std::cout << FormatRunSummary(s) << "wrote " << args.out
@@ -54,7 +55,7 @@ void AddRunCommand(CLI::App& app) {
   cmd->add_option("--max-frames", args->max_frames, "stop after this many frames (0: all)")
       ->check(CLI::NonNegativeNumber);
   cmd->add_flag("--sequential", args->sequential,
-                "map inline after each keyframe (bit-identical runs); currently the only mode");
+                "map inline after each keyframe: bit-identical runs (default: a mapping thread)");
   cmd->callback([args] { RunSlam(*args); });
 }
 

@@ -20,12 +20,27 @@ LocalMapper::LocalMapper(Map* map, const LocalMapperOptions& options)
   options_.Check();
 }
 
-MappingResult LocalMapper::Process(KeyFrame* kf) {
+namespace {
+
+// A lock that is only taken when there is a mutex (threaded runs).
+std::unique_lock<std::mutex> LockIf(std::mutex* mutex) {
+  return mutex != nullptr ? std::unique_lock<std::mutex>(*mutex) : std::unique_lock<std::mutex>();
+}
+
+}  // namespace
+
+MappingResult LocalMapper::Process(KeyFrame* kf, std::mutex* map_mutex) {
   MappingResult result;
-  InsertKeyFrame(kf);
-  result.culled_points = CullRecentPoints(kf);
-  result.fused_points = FuseWithNeighbours(kf);
-  if (map_->GoodKeyFrames() > 2) LocalBundleAdjustment(kf, &result);
+  bool adjust = false;
+  {
+    auto lock = LockIf(map_mutex);
+    InsertKeyFrame(kf);
+    result.culled_points = CullRecentPoints(kf);
+    result.fused_points = FuseWithNeighbours(kf);
+    adjust = map_->GoodKeyFrames() > 2;
+  }
+  if (adjust) LocalBundleAdjustment(kf, &result, map_mutex);
+  auto lock = LockIf(map_mutex);
   result.culled_keyframes = CullKeyFrames(kf);
   return result;
 }
@@ -95,7 +110,9 @@ int LocalMapper::FuseWithNeighbours(KeyFrame* kf) {
   return fused;
 }
 
-void LocalMapper::LocalBundleAdjustment(KeyFrame* kf, MappingResult* result) {
+void LocalMapper::LocalBundleAdjustment(KeyFrame* kf, MappingResult* result,
+                                        std::mutex* map_mutex) {
+  auto lock = LockIf(map_mutex);
   std::vector<KeyFrame*> local{kf};
   std::set<uint64_t> local_ids{kf->id};
   for (KeyFrame* n : kf->best_covisible) {

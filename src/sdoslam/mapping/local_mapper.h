@@ -1,5 +1,6 @@
 #pragma once
 
+#include <mutex>
 #include <vector>
 
 #include "sdoslam/map/map.h"
@@ -30,13 +31,15 @@ struct MappingResult {
 class LocalMapper {
  public:
   LocalMapper(Map* map, const LocalMapperOptions& options);
-  MappingResult Process(KeyFrame* keyframe);
+  // Processes a new keyframe. With `map_mutex`, the map is locked while it is read or changed,
+  // but not while the bundle adjustment is solved (on a copy), so tracking goes on meanwhile.
+  MappingResult Process(KeyFrame* keyframe, std::mutex* map_mutex = nullptr);
 
  private:
   void InsertKeyFrame(KeyFrame* keyframe);
   int CullRecentPoints(KeyFrame* keyframe);
   int FuseWithNeighbours(KeyFrame* keyframe);
-  void LocalBundleAdjustment(KeyFrame* keyframe, MappingResult* result);
+  void LocalBundleAdjustment(KeyFrame* keyframe, MappingResult* result, std::mutex* map_mutex);
   int CullKeyFrames(KeyFrame* keyframe);
 
   Map* map_;

@@ -22,6 +22,7 @@ void SlamOptions::Check() const {
   mapping.Check();
   if (!(bf > 0)) throw Error("rgbd.bf must be positive");
   if (!(close_depth_baselines > 0)) throw Error("rgbd.close_depth_baselines must be positive");
+  if (max_queued_keyframes < 1) throw Error("mapping.max_queued_keyframes must be >= 1");
 }
 
 SlamOptions ReadSlamOptions(ConfigMap& root) {
@@ -91,9 +92,46 @@ System::System(const CameraOptions& camera, const SlamOptions& options)
   map_ = std::make_unique<Map>();
   tracker_ = std::make_unique<Tracker>(map_.get(), options_.tracking);
   mapper_ = std::make_unique<LocalMapper>(map_.get(), options_.mapping);
+  if (!options_.sequential) mapping_thread_ = std::thread([this] { MappingLoop(); });
 }
 
-System::~System() = default;
+System::~System() { Shutdown(); }
+
+void System::Shutdown() {
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    stop_ = true;
+  }
+  queue_changed_.notify_all();
+  if (mapping_thread_.joinable()) mapping_thread_.join();
+}
+
+void System::MappingLoop() {
+  for (;;) {
+    KeyFrame* keyframe = nullptr;
+    {
+      std::unique_lock<std::mutex> lock(queue_mutex_);
+      queue_changed_.wait(lock, [this] { return stop_ || !queue_.empty(); });
+      if (queue_.empty()) return;  // stopping, and everything queued is mapped
+      keyframe = queue_.front();
+      queue_.pop_front();
+      mapping_busy_ = true;
+    }
+    const auto start = std::chrono::steady_clock::now();
+    mapper_->Process(keyframe, &map_mutex_);
+    const double ms = MsSince(start);
+    {
+      std::lock_guard<std::mutex> lock(queue_mutex_);
+      mapping_busy_ = false;
+      mapping_ms_.push_back(ms);
+    }
+  }
+}
+
+std::vector<double> System::MappingTimes() const {
+  std::lock_guard<std::mutex> lock(queue_mutex_);
+  return mapping_ms_;
+}
 
 TrackingResult System::TrackRgbd(size_t index, double timestamp, const cv::Mat& bgr,
                                  const cv::Mat& depth, FrameTiming* timing) {
@@ -108,18 +146,38 @@ TrackingResult System::TrackRgbd(size_t index, double timestamp, const cv::Mat& 
   t.features_ms = MsSince(start);
   start = std::chrono::steady_clock::now();
   KeyFrame* keyframe = nullptr;
-  const TrackingResult result = tracker_->Track(std::move(frame), &keyframe);
+  bool idle = true, accepts = true;
+  if (!options_.sequential) {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    idle = queue_.empty() && !mapping_busy_;
+    accepts = static_cast<int>(queue_.size()) < options_.max_queued_keyframes;
+  }
+  TrackingResult result;
+  {
+    std::lock_guard<std::mutex> lock(map_mutex_);
+    result = tracker_->Track(std::move(frame), &keyframe, idle, accepts);
+  }
   t.tracking_ms = MsSince(start);
   if (keyframe != nullptr) {
-    start = std::chrono::steady_clock::now();
-    mapper_->Process(keyframe);
-    t.mapping_ms = MsSince(start);
+    if (options_.sequential) {
+      start = std::chrono::steady_clock::now();
+      mapper_->Process(keyframe);
+      t.mapping_ms = MsSince(start);
+      mapping_ms_.push_back(t.mapping_ms);
+    } else {
+      {
+        std::lock_guard<std::mutex> lock(queue_mutex_);
+        queue_.push_back(keyframe);
+      }
+      queue_changed_.notify_one();
+    }
   }
   if (timing != nullptr) *timing = t;
   return result;
 }
 
 Trajectory System::CameraTrajectory() const {
+  std::lock_guard<std::mutex> lock(map_mutex_);
   Trajectory out;
   for (const Tracker::TrajectoryEntry& e : tracker_->trajectory()) {
     if (e.reference == nullptr) continue;
@@ -137,6 +195,7 @@ Trajectory System::CameraTrajectory() const {
 }
 
 Trajectory System::KeyFrameTrajectory() const {
+  std::lock_guard<std::mutex> lock(map_mutex_);
   Trajectory out;
   for (const auto& [id, kf] : map_->keyframes()) {
     if (!kf->bad) out.push_back({kf->frame.timestamp, kf->pose().inverse()});

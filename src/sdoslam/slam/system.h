@@ -1,6 +1,10 @@
 #pragma once
 
+#include <condition_variable>
+#include <deque>
 #include <memory>
+#include <mutex>
+#include <thread>
 
 #include "sdoslam/core/camera.h"
 #include "sdoslam/core/config.h"
@@ -20,6 +24,10 @@ struct SlamOptions {
   LocalMapperOptions mapping;
   double bf = 40.0;                     // virtual stereo baseline × fx (ORB-SLAM2's Kinect value)
   double close_depth_baselines = 40.0;  // "close" = depth < this × baseline (≈3.1 m for TUM)
+  // true: local mapping runs inline after each keyframe, and runs are bit-identical.
+  // false: it runs in its own thread, concurrently with feature extraction and tracking.
+  bool sequential = true;
+  int max_queued_keyframes = 3;  // threaded: tracking makes no keyframe while this many wait
   void Check() const;
 };
 
@@ -34,11 +42,14 @@ struct FrameTiming {
 };
 
 // The library's face: feed RGB-D frames in order, read trajectories. Local mapping runs inline
-// after each new keyframe, so a run is reproducible bit for bit.
+// (sequential) or in a thread fed by a bounded queue; Shutdown() (or the destructor) lets it
+// finish the queued keyframes and joins it.
 class System {
  public:
   System(const CameraOptions& camera, const SlamOptions& options);
   ~System();
+  System(const System&) = delete;
+  System& operator=(const System&) = delete;
 
   // bgr: CV_8UC3; depth: CV_32FC1 metres (0 = none), registered to the colour image.
   TrackingResult TrackRgbd(size_t index, double timestamp, const cv::Mat& bgr, const cv::Mat& depth,
@@ -46,17 +57,33 @@ class System {
 
   // Every tracked frame (lost ones left out), with its pose relative to its reference keyframe
   // composed with that keyframe's current (refined) pose. T_world_camera per pose.
+  // Call after Shutdown() in threaded mode to include the last keyframes' refinement.
   Trajectory CameraTrajectory() const;
   Trajectory KeyFrameTrajectory() const;
+  // Finishes local mapping of the queued keyframes and stops the mapping thread. Idempotent.
+  void Shutdown();
   const Map& map() const { return *map_; }
+  // Local mapping time per keyframe, milliseconds, in processing order.
+  std::vector<double> MappingTimes() const;
 
  private:
+  void MappingLoop();
+
   SlamOptions options_;
   OrbExtractor extractor_;
   std::shared_ptr<const FrameGeometry> geometry_;
   std::unique_ptr<Map> map_;
   std::unique_ptr<Tracker> tracker_;
   std::unique_ptr<LocalMapper> mapper_;
+
+  mutable std::mutex map_mutex_;  // guards the map between tracking and the mapping thread
+  mutable std::mutex queue_mutex_;
+  std::condition_variable queue_changed_;
+  std::deque<KeyFrame*> queue_;
+  bool mapping_busy_ = false;
+  bool stop_ = false;
+  std::vector<double> mapping_ms_;
+  std::thread mapping_thread_;
 };
 
 }  // namespace sdoslam

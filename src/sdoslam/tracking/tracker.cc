@@ -36,7 +36,8 @@ Tracker::Tracker(Map* map, const TrackerOptions& options) : map_(map), options_(
   options_.Check();
 }
 
-TrackingResult Tracker::Track(Frame frame, KeyFrame** new_keyframe) {
+TrackingResult Tracker::Track(Frame frame, KeyFrame** new_keyframe, bool mapping_idle,
+                              bool mapping_accepts) {
   *new_keyframe = nullptr;
   ++frame_stamp_;
   TrackingResult result;
@@ -89,7 +90,7 @@ TrackingResult Tracker::Track(Frame frame, KeyFrame** new_keyframe) {
   if (ok) {
     has_velocity_ = true;
     velocity_ = frame.T_camera_world * last_frame_->T_camera_world.inverse();
-    if (NeedKeyFrame(frame, result.inliers)) {
+    if (mapping_accepts && NeedKeyFrame(frame, result.inliers, mapping_idle)) {
       *new_keyframe = CreateKeyFrame(frame);
       result.keyframe = true;
     }
@@ -253,7 +254,7 @@ bool Tracker::TrackLocalMap(Frame& frame, TrackingResult* result) {
   return inliers >= options_.min_inliers;
 }
 
-bool Tracker::NeedKeyFrame(const Frame& frame, int inliers) const {
+bool Tracker::NeedKeyFrame(const Frame& frame, int inliers, bool mapping_idle) const {
   const size_t keyframes = map_->GoodKeyFrames();
   const int min_observations = keyframes == 1 ? 1 : keyframes == 2 ? 2 : 3;
   const int reference_matches = reference_->TrackedPoints(min_observations);
@@ -272,12 +273,10 @@ bool Tracker::NeedKeyFrame(const Frame& frame, int inliers) const {
   const bool long_since =
       frame.index >=
       last_keyframe_frame_ + static_cast<size_t>(options_.max_frames_between_keyframes);
-  // Local mapping runs inline or keeps up, so it is always ready for a keyframe (ORB-SLAM's c1b).
-  const bool mapping_ready = true;
   const bool weak = inliers < 0.25 * reference_matches || need_close;
   const bool c2 =
       (inliers < options_.reference_ratio * reference_matches || need_close) && inliers > 15;
-  return (long_since || mapping_ready || weak) && c2;
+  return (long_since || mapping_idle || weak) && c2;
 }
 
 KeyFrame* Tracker::CreateKeyFrame(Frame& frame) {

@@ -44,7 +44,10 @@ class Tracker {
   Tracker(Map* map, const TrackerOptions& options);
 
   // Tracks `frame`. When a keyframe is created it is returned through `new_keyframe`.
-  TrackingResult Track(Frame frame, KeyFrame** new_keyframe);
+  // `mapping_idle`: local mapping has nothing queued (always true when it runs inline);
+  // `mapping_accepts`: a keyframe may be queued now.
+  TrackingResult Track(Frame frame, KeyFrame** new_keyframe, bool mapping_idle = true,
+                       bool mapping_accepts = true);
 
   // Each frame's pose relative to its reference keyframe, so that the trajectory follows the
   // keyframes as mapping refines them.
@@ -63,7 +66,7 @@ class Tracker {
   bool TrackLocalMap(Frame& frame, TrackingResult* result);
   int OptimizeAndCount(Frame& frame);
   void MakeTemporaryPoints();
-  bool NeedKeyFrame(const Frame& frame, int inliers) const;
+  bool NeedKeyFrame(const Frame& frame, int inliers, bool mapping_idle) const;
   KeyFrame* CreateKeyFrame(Frame& frame);
 
   Map* map_;
