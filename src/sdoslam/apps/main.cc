@@ -5,6 +5,7 @@
 #include <CLI/CLI.hpp>
 #include <iostream>
 
+#include "sdoslam/apps/bench_command.h"
 #include "sdoslam/apps/demo_command.h"
 #include "sdoslam/apps/eval_command.h"
 #include "sdoslam/apps/run_command.h"
@@ -23,6 +24,7 @@ int main(int argc, char** argv) {
   sdoslam::AddDemoCommand(app);
   sdoslam::AddSynthCommand(app);
   sdoslam::AddRunCommand(app);
+  sdoslam::AddBenchCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

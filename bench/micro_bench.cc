@@ -1,0 +1,62 @@
+// Google Benchmark micro-benchmarks of the hot paths. Not tests: run them by hand,
+//   build/bench/micro_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+#include <benchmark/benchmark.h>
+
+#include <opencv2/imgproc.hpp>
+#include <random>
+
+#include "sdoslam/features/orb_extractor.h"
+#include "sdoslam/optim/optimizer.h"
+#include "sdoslam/synth/renderer.h"
+#include "sdoslam/synth/scenarios.h"
+
+namespace sdoslam {
+namespace {
+
+cv::Mat SyntheticGray() {
+  const synth::Scenario s = synth::MakeScenario("walking_xyz", 10.0);
+  const Camera camera(synth::SyntheticCamera());
+  const synth::RenderedView view =
+      synth::Render(s.scene, 2.0, synth::CameraPoseAt(s.motion, 2.0, 10.0), camera);
+  cv::Mat bgr, gray;
+  view.colour.convertTo(bgr, CV_8UC3, 255.0);
+  cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
+  return gray;
+}
+
+void BM_OrbExtract640x480(benchmark::State& state) {
+  const cv::Mat gray = SyntheticGray();
+  const OrbExtractor orb(OrbOptions{});
+  std::vector<cv::KeyPoint> keypoints;
+  cv::Mat descriptors;
+  for (auto _ : state) {
+    orb.Extract(gray, &keypoints, &descriptors);
+    benchmark::DoNotOptimize(descriptors.data);
+  }
+  state.counters["features"] = static_cast<double>(keypoints.size());
+}
+BENCHMARK(BM_OrbExtract640x480)->Unit(benchmark::kMillisecond);
+
+void BM_OptimizePose(benchmark::State& state) {
+  const PinholeIntrinsics k{535.4, 539.2, 320.1, 247.6, 40.0};
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<double> xy(-2, 2), z(1, 5);
+  std::vector<Eigen::Vector3d> points;
+  std::vector<PointObservation> observations;
+  for (int i = 0; i < state.range(0); ++i) {
+    const Eigen::Vector3d p(xy(rng), xy(rng), z(rng));
+    PointObservation m;
+    m.pixel = Eigen::Vector2d(k.fx * p.x() / p.z() + k.cx + 0.5, k.fy * p.y() / p.z() + k.cy - 0.5);
+    m.right_u = m.pixel.x() - k.bf / p.z();
+    points.push_back(p);
+    observations.push_back(m);
+  }
+  Eigen::Isometry3d initial = Eigen::Isometry3d::Identity();
+  initial.translation() = Eigen::Vector3d(0.02, -0.01, 0.03);
+  for (auto _ : state)
+    benchmark::DoNotOptimize(OptimizePose(k, initial, points, observations).num_inliers);
+}
+BENCHMARK(BM_OptimizePose)->Arg(300)->Arg(800)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace sdoslam
