@@ -163,6 +163,21 @@ TEST_F(CliRun, WritesTrajectoriesLogAndEvaluates) {
   EXPECT_EQ(again.exit_code, 0) << again.output;
 }
 
+TEST_F(CliRun, SequentialTwiceGivesIdenticalTrajectoryFiles) {
+  std::string files[2];
+  for (int k = 0; k < 2; ++k) {
+    const std::string out = (dir_ / ("det" + std::to_string(k))).string();
+    const Result r =
+        RunSdoslam("run --sequential --dataset " + (dir_ / "seq").string() + " --config " +
+                   (dir_ / "seq" / "camera.yaml").string() + " --out " + out);
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    files[k] = testing::ReadText(out + "/CameraTrajectory.txt") +
+               testing::ReadText(out + "/KeyFrameTrajectory.txt");
+  }
+  EXPECT_GT(files[0].size(), 35u * 40u);
+  EXPECT_EQ(files[0], files[1]);
+}
+
 TEST_F(CliRun, ImpossibleIntrinsicsAndUnknownKeysAreNamed) {
   testing::WriteText(dir_ / "bad.yaml", "camera:\n  fx: -500\n  fy: 500\n  cx: 320\n  cy: 240\n");
   std::string output = Run((dir_ / "bad.yaml").string(), (dir_ / "seq").string());
