@@ -36,6 +36,7 @@ MappingResult LocalMapper::Process(KeyFrame* kf, std::mutex* map_mutex) {
     auto lock = LockIf(map_mutex);
     InsertKeyFrame(kf);
     result.culled_points = CullRecentPoints(kf);
+    result.triangulated_points = TriangulateNewPoints(kf);
     result.fused_points = FuseWithNeighbours(kf);
     adjust = map_->GoodKeyFrames() > 2;
   }
@@ -81,6 +82,129 @@ int LocalMapper::CullRecentPoints(KeyFrame* kf) {
   }
   recent_points_ = std::move(keep);
   return culled;
+}
+
+namespace {
+
+Eigen::Matrix3d Skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d m;
+  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return m;
+}
+
+// Whitened squared reprojection error of X in keyframe feature i, or +inf behind the camera.
+double Chi2(const KeyFrame& kf, int i, const Eigen::Vector3d& X) {
+  const PinholeIntrinsics& k = kf.frame.geometry->intrinsics;
+  const Eigen::Vector3d p = kf.pose() * X;
+  if (p.z() <= 0) return std::numeric_limits<double>::infinity();
+  const PointObservation m = kf.frame.Observation(i);
+  const double u = k.fx * p.x() / p.z() + k.cx, v = k.fy * p.y() / p.z() + k.cy;
+  double e2 = (u - m.pixel.x()) * (u - m.pixel.x()) + (v - m.pixel.y()) * (v - m.pixel.y());
+  if (m.right_u >= 0) e2 += (u - k.bf / p.z() - m.right_u) * (u - k.bf / p.z() - m.right_u);
+  return e2 * m.inv_sigma2;
+}
+
+}  // namespace
+
+int LocalMapper::TriangulateNewPoints(KeyFrame* kf) {
+  const FrameGeometry& g = *kf->frame.geometry;
+  const PinholeIntrinsics& k = g.intrinsics;
+  const Eigen::Matrix3d K = (Eigen::Matrix3d() << k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1).finished();
+  const Eigen::Matrix3d K_inv = K.inverse();
+  const double baseline = k.bf / k.fx;
+  const double ratio_factor = 1.5 * (g.scale.size() > 1 ? g.scale[1] : 1.2);
+  int created = 0;
+  for (KeyFrame* other : kf->Covisible(static_cast<size_t>(options_.triangulation_neighbours))) {
+    if (other->bad) continue;
+    // Below the virtual stereo baseline, the depth sensor knows better than triangulation.
+    if ((other->CameraCentre() - kf->CameraCentre()).norm() < baseline) continue;
+    // Fundamental matrix from kf to other: x_other^T F x_kf = 0.
+    const Eigen::Isometry3d T_other_kf = other->pose() * kf->pose().inverse();
+    const Eigen::Matrix3d F =
+        K_inv.transpose() * Skew(T_other_kf.translation()) * T_other_kf.linear() * K_inv;
+    std::vector<int> free_other;
+    for (size_t j = 0; j < other->frame.size(); ++j) {
+      const MapPoint* p = other->frame.map_points[j];
+      if (p == nullptr || p->bad) free_other.push_back(static_cast<int>(j));
+    }
+    std::vector<bool> used(other->frame.size(), false);
+    for (size_t i = 0; i < kf->frame.size(); ++i) {
+      const MapPoint* existing = kf->frame.map_points[i];
+      if (existing != nullptr && !existing->bad) continue;
+      const Eigen::Vector3d x1(kf->frame.undistorted[i].x, kf->frame.undistorted[i].y, 1.0);
+      const Eigen::Vector3d line = F * x1;
+      const double line_norm2 = line.x() * line.x() + line.y() * line.y();
+      int best = 256, second = 256, best_j = -1;
+      for (int j : free_other) {
+        if (used[static_cast<size_t>(j)]) continue;
+        const size_t jj = static_cast<size_t>(j);
+        const Eigen::Vector3d x2(other->frame.undistorted[jj].x, other->frame.undistorted[jj].y,
+                                 1.0);
+        const double d = line.dot(x2);
+        const int level = other->frame.keypoints[jj].octave;
+        if (d * d / line_norm2 >
+            3.84 * g.scale[static_cast<size_t>(level)] * g.scale[static_cast<size_t>(level)]) {
+          continue;  // off the epipolar line
+        }
+        const int distance =
+            DescriptorDistance(kf->frame.descriptors.ptr<uint8_t>(static_cast<int>(i)),
+                               other->frame.descriptors.ptr<uint8_t>(j));
+        if (distance < best) {
+          second = best;
+          best = distance;
+          best_j = j;
+        } else if (distance < second) {
+          second = distance;
+        }
+      }
+      // Repetitive texture puts look-alikes on the same epipolar line: demand a clear winner.
+      if (best_j < 0 || best > kMatchStrict || best > 0.8 * second) continue;
+      const size_t j = static_cast<size_t>(best_j);
+      // Linear triangulation (DLT) from the two normalised rays.
+      const Eigen::Vector3d r1 = K_inv * x1;
+      const Eigen::Vector3d r2 = K_inv * Eigen::Vector3d(other->frame.undistorted[j].x,
+                                                         other->frame.undistorted[j].y, 1.0);
+      const Eigen::Matrix<double, 3, 4> P1 = kf->pose().matrix().topRows<3>();
+      const Eigen::Matrix<double, 3, 4> P2 = other->pose().matrix().topRows<3>();
+      Eigen::Matrix4d A;
+      A.row(0) = r1.x() * P1.row(2) - P1.row(0);
+      A.row(1) = r1.y() * P1.row(2) - P1.row(1);
+      A.row(2) = r2.x() * P2.row(2) - P2.row(0);
+      A.row(3) = r2.y() * P2.row(2) - P2.row(1);
+      const Eigen::Vector4d h =
+          Eigen::JacobiSVD<Eigen::Matrix4d>(A, Eigen::ComputeFullV).matrixV().col(3);
+      if (std::abs(h.w()) < 1e-12) continue;
+      const Eigen::Vector3d X = h.head<3>() / h.w();
+      // Enough parallax, in front of both, consistent in both images and in scale.
+      const Eigen::Vector3d ray1 = X - kf->CameraCentre(), ray2 = X - other->CameraCentre();
+      if (ray1.normalized().dot(ray2.normalized()) > 0.9998) continue;
+      if (Chi2(*kf, static_cast<int>(i), X) > (kf->frame.right_u[i] >= 0 ? kChi2Stereo : kChi2Mono))
+        continue;
+      if (Chi2(*other, best_j, X) > (other->frame.right_u[j] >= 0 ? kChi2Stereo : kChi2Mono))
+        continue;
+      // Where a view measured depth, the triangulation must agree with it.
+      const double z1 = (kf->pose() * X).z(), z2 = (other->pose() * X).z();
+      if (kf->frame.depth[i] > 0 && std::abs(z1 - kf->frame.depth[i]) > 0.05 * kf->frame.depth[i])
+        continue;
+      if (other->frame.depth[j] > 0 &&
+          std::abs(z2 - other->frame.depth[j]) > 0.05 * other->frame.depth[j])
+        continue;
+      const double distance_ratio = ray1.norm() / ray2.norm();
+      const double scale_ratio = g.scale[static_cast<size_t>(kf->frame.keypoints[i].octave)] /
+                                 g.scale[static_cast<size_t>(other->frame.keypoints[j].octave)];
+      if (distance_ratio * ratio_factor < scale_ratio ||
+          distance_ratio > scale_ratio * ratio_factor)
+        continue;
+      MapPoint* p = map_->AddMapPoint(X, kf);
+      map_->AddObservation(p, kf, static_cast<int>(i));
+      map_->AddObservation(p, other, best_j);
+      p->UpdateFromObservations();
+      recent_points_.push_back(p);
+      used[j] = true;
+      ++created;
+    }
+  }
+  return created;
 }
 
 int LocalMapper::FuseWithNeighbours(KeyFrame* kf) {

@@ -9,9 +9,10 @@
 namespace sdoslam {
 
 struct LocalMapperOptions {
-  int fuse_neighbours = 10;       // covisible keyframes searched for duplicate points
-  double min_found_ratio = 0.25;  // recent points found less often than this are culled
-  double redundant_ratio = 0.9;   // keyframes with this share of redundant points are culled
+  int fuse_neighbours = 10;           // covisible keyframes searched for duplicate points
+  int triangulation_neighbours = 10;  // covisible keyframes to triangulate new points with
+  double min_found_ratio = 0.25;      // recent points found less often than this are culled
+  double redundant_ratio = 0.9;       // keyframes with this share of redundant points are culled
   BundleAdjustmentOptions bundle_adjustment;
   void Check() const;
 };
@@ -19,6 +20,7 @@ struct LocalMapperOptions {
 // Statistics of one processed keyframe, for the run log.
 struct MappingResult {
   int culled_points = 0;
+  int triangulated_points = 0;
   int fused_points = 0;
   int local_keyframes = 0, fixed_keyframes = 0, local_points = 0;
   int removed_observations = 0;
@@ -38,6 +40,7 @@ class LocalMapper {
  private:
   void InsertKeyFrame(KeyFrame* keyframe);
   int CullRecentPoints(KeyFrame* keyframe);
+  int TriangulateNewPoints(KeyFrame* keyframe);
   int FuseWithNeighbours(KeyFrame* keyframe);
   void LocalBundleAdjustment(KeyFrame* keyframe, MappingResult* result, std::mutex* map_mutex);
   int CullKeyFrames(KeyFrame* keyframe);

@@ -1,0 +1,75 @@
+#include "sdoslam/mapping/local_mapper.h"
+
+#include <gtest/gtest.h>
+
+#include "sdoslam/synth/renderer.h"
+#include "sdoslam/synth/scenarios.h"
+#include "sdoslam/synth/sensor.h"
+#include "sdoslam/tracking/matcher.h"
+
+namespace sdoslam {
+namespace {
+
+TEST(LocalMapper, TriangulatesFeaturesWithoutDepthOntoTheTrueSurface) {
+  const Camera camera(synth::SyntheticCamera());
+  const OrbExtractor extractor(OrbOptions{});
+  auto geometry = std::make_shared<FrameGeometry>(camera, extractor, 40.0, 3.0);
+  const synth::Scenario scenario =
+      synth::MakeScenario("static_room", 10.0, synth::CameraMotion::kXyz);
+  Map map;
+  std::vector<KeyFrame*> keyframes;
+  std::vector<cv::Mat> true_depth;
+  for (double t : {0.0, 0.6}) {  // ~20 cm apart
+    const Eigen::Isometry3d T_world_camera = synth::CameraPoseAt(scenario.motion, t, 10.0);
+    const synth::RenderedView view = synth::Render(scenario.scene, t, T_world_camera, camera);
+    const synth::SensorFrame sensed =
+        synth::Sense(view, camera.options(), {}, 3, static_cast<int>(t * 10));
+    cv::Mat depth;
+    sensed.depth.convertTo(depth, CV_32F, 1.0 / 5000.0);
+    if (t > 0) depth.setTo(0.0f);  // the second view has no depth: new points must be triangulated
+    Frame frame(keyframes.size(), t, sensed.bgr, depth, geometry, extractor);
+    frame.T_camera_world = T_world_camera.inverse();
+    if (!keyframes.empty())
+      SearchByProjection(frame, keyframes[0]->frame, 15.0);  // as tracking would
+    KeyFrame* kf = map.AddKeyFrame(frame);
+    if (keyframes.empty()) {
+      // Like tracking, make depth points for the nearer features only; far ones stay free.
+      std::vector<float> depths;
+      for (float d : kf->frame.depth)
+        if (d > 0) depths.push_back(d);
+      std::nth_element(depths.begin(), depths.begin() + depths.size() / 2, depths.end());
+      const float near_limit = depths[depths.size() / 2];
+      for (size_t i = 0; i < kf->frame.size(); ++i) {
+        if (!kf->frame.HasDepth(static_cast<int>(i)) || kf->frame.depth[i] > near_limit) continue;
+        MapPoint* p = map.AddMapPoint(kf->frame.UnprojectWorld(static_cast<int>(i)), kf);
+        map.AddObservation(p, kf, static_cast<int>(i));
+        p->UpdateFromObservations();
+      }
+    }
+    keyframes.push_back(kf);
+    true_depth.push_back(view.depth);
+  }
+  LocalMapper mapper(&map, LocalMapperOptions{});
+  mapper.Process(keyframes[0]);
+  const size_t before = map.points().size();
+  const MappingResult result = mapper.Process(keyframes[1]);
+  EXPECT_GT(result.triangulated_points, 50);
+  // Each new point, seen from the second camera, lies at the rendered depth of its pixel.
+  int checked = 0, on_surface = 0;
+  for (const auto& [id, point] : map.points()) {
+    if (id < before || point->bad) continue;
+    const auto it = point->observations.find(keyframes[1]->id);
+    if (it == point->observations.end()) continue;
+    const cv::Point2f pixel =
+        keyframes[1]->frame.keypoints[static_cast<size_t>(it->second.second)].pt;
+    const float z_true = true_depth[1].at<float>(cvRound(pixel.y), cvRound(pixel.x));
+    const double z = (keyframes[1]->pose() * point->position).z();
+    ++checked;
+    on_surface += std::abs(z - z_true) < 0.05 * z_true;
+  }
+  ASSERT_GT(checked, 50);
+  EXPECT_GT(on_surface, 0.9 * checked);
+}
+
+}  // namespace
+}  // namespace sdoslam
