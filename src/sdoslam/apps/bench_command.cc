@@ -21,13 +21,6 @@ struct BenchArgs {
   std::string work = "sdoslam_bench";
 };
 
-double Median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v.empty()      ? 0
-         : v.size() % 2 ? v[v.size() / 2]
-                        : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
-}
-
 // Runs the same sequence several times and reports the median over runs of each run's median
 // per-frame and per-keyframe time: this machine is noisy, single runs are not worth quoting.
 void RunBench(const BenchArgs& args) {
@@ -68,8 +61,9 @@ void RunBench(const BenchArgs& args) {
       "{} ({}, {} runs): median per frame (features + tracking) {:.1f} ms, median local mapping "
       "per "
       "keyframe {:.1f} ms{}\n",
-      dataset.string(), args.threaded ? "threaded" : "sequential", args.runs, Median(frame_ms),
-      Median(mapping_ms), ate.empty() ? "" : fmt::format(", median ATE {:.4f} m", Median(ate)));
+      dataset.string(), args.threaded ? "threaded" : "sequential", args.runs,
+      ComputeErrorStats(frame_ms).median, ComputeErrorStats(mapping_ms).median,
+      ate.empty() ? "" : fmt::format(", median ATE {:.4f} m", ComputeErrorStats(ate).median));
 }
 
 }  // namespace

@@ -11,15 +11,7 @@
 #include "sdoslam/io/tum_dataset.h"
 
 namespace sdoslam {
-namespace {
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
-}
-
-}  // namespace
+namespace {}  // namespace
 
 RunSummary RunOnDataset(const std::filesystem::path& dataset_folder,
                         const std::filesystem::path& associations, const CameraOptions& camera,
@@ -74,8 +66,8 @@ RunSummary RunOnDataset(const std::filesystem::path& dataset_folder,
   summary.tracked = summary.trajectory.size();
   summary.keyframes = slam.map().GoodKeyFrames();
   summary.map_points = slam.map().GoodPoints();
-  summary.median_frame_ms = Median(frame_ms);
-  summary.median_mapping_ms = Median(mapping_ms);
+  summary.median_frame_ms = ComputeErrorStats(frame_ms).median;
+  summary.median_mapping_ms = ComputeErrorStats(mapping_ms).median;
 
   WriteTumTrajectory(out / "CameraTrajectory.txt", summary.trajectory);
   WriteTumTrajectory(out / "KeyFrameTrajectory.txt", slam.KeyFrameTrajectory());

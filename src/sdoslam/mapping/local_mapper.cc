@@ -86,12 +86,6 @@ int LocalMapper::CullRecentPoints(KeyFrame* kf) {
 
 namespace {
 
-Eigen::Matrix3d Skew(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d m;
-  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-  return m;
-}
-
 // Whitened squared reprojection error of X in keyframe feature i, or +inf behind the camera.
 double Chi2(const KeyFrame& kf, int i, const Eigen::Vector3d& X) {
   const PinholeIntrinsics& k = kf.frame.geometry->intrinsics;
@@ -121,7 +115,7 @@ int LocalMapper::TriangulateNewPoints(KeyFrame* kf) {
     // Fundamental matrix from kf to other: x_other^T F x_kf = 0.
     const Eigen::Isometry3d T_other_kf = other->pose() * kf->pose().inverse();
     const Eigen::Matrix3d F =
-        K_inv.transpose() * Skew(T_other_kf.translation()) * T_other_kf.linear() * K_inv;
+        K_inv.transpose() * Hat(T_other_kf.translation()) * T_other_kf.linear() * K_inv;
     std::vector<int> free_other;
     for (size_t j = 0; j < other->frame.size(); ++j) {
       const MapPoint* p = other->frame.map_points[j];

@@ -21,6 +21,9 @@ class PoseManifold : public ceres::Manifold {
   bool MinusJacobian(const double* x, double* jacobian) const override;
 };
 
+// The skew-symmetric matrix of v: Hat(v)·x = v × x.
+Eigen::Matrix3d Hat(const Eigen::Vector3d& v);
+
 void PoseToParameters(const Eigen::Isometry3d& T_camera_world, double* parameters);
 Eigen::Isometry3d PoseFromParameters(const double* parameters);
 

@@ -39,6 +39,17 @@ class RotationHistogram {
   std::array<std::vector<int>, kHistogramBins> bins_;
 };
 
+// Projects a world point into a camera at T_camera_world; false when behind it or outside the
+// (undistorted) image. `p` receives the point in the camera frame.
+bool ProjectIntoImage(const FrameGeometry& g, const Eigen::Isometry3d& T_camera_world,
+                      const Eigen::Vector3d& X, Eigen::Vector3d* p, double* u, double* v) {
+  *p = T_camera_world * X;
+  if (p->z() <= 0) return false;
+  *u = g.intrinsics.fx * p->x() / p->z() + g.intrinsics.cx;
+  *v = g.intrinsics.fy * p->y() / p->z() + g.intrinsics.cy;
+  return g.InImage(*u, *v);
+}
+
 }  // namespace
 
 int SearchByProjection(Frame& current, const Frame& last, double radius) {
@@ -49,11 +60,9 @@ int SearchByProjection(Frame& current, const Frame& last, double radius) {
   for (size_t i = 0; i < last.size(); ++i) {
     MapPoint* point = last.map_points[i];
     if (point == nullptr || point->bad || last.outlier[i]) continue;
-    const Eigen::Vector3d p = T * point->position;
-    if (p.z() <= 0) continue;
-    const double u = g.intrinsics.fx * p.x() / p.z() + g.intrinsics.cx;
-    const double v = g.intrinsics.fy * p.y() / p.z() + g.intrinsics.cy;
-    if (!g.InImage(u, v)) continue;
+    Eigen::Vector3d p;
+    double u, v;
+    if (!ProjectIntoImage(g, T, point->position, &p, &u, &v)) continue;
     const int level = last.keypoints[i].octave;
     const auto candidates = current.FeaturesInArea(
         u, v, radius * g.scale[static_cast<size_t>(level)], std::max(0, level - 1), level + 1);
@@ -97,11 +106,9 @@ int SearchLocalPoints(Frame& current, const std::vector<MapPoint*>& points, uint
   int matches = 0;
   for (MapPoint* point : points) {
     if (point->bad || point->last_seen_frame == frame_stamp) continue;  // already matched
-    const Eigen::Vector3d p = T * point->position;
-    if (p.z() <= 0) continue;
-    const double u = g.intrinsics.fx * p.x() / p.z() + g.intrinsics.cx;
-    const double v = g.intrinsics.fy * p.y() / p.z() + g.intrinsics.cy;
-    if (!g.InImage(u, v)) continue;
+    Eigen::Vector3d p;
+    double u, v;
+    if (!ProjectIntoImage(g, T, point->position, &p, &u, &v)) continue;
     const Eigen::Vector3d ray = point->position - centre;
     const double distance = ray.norm();
     if (distance < 0.8 * point->min_distance || distance > 1.2 * point->max_distance) continue;
@@ -184,11 +191,9 @@ int Fuse(Map& map, KeyFrame* kf, const std::vector<MapPoint*>& points) {
   int fused = 0;
   for (MapPoint* point : points) {
     if (point == nullptr || point->bad || point->observations.count(kf->id)) continue;
-    const Eigen::Vector3d p = T * point->position;
-    if (p.z() <= 0) continue;
-    const double u = g.intrinsics.fx * p.x() / p.z() + g.intrinsics.cx;
-    const double v = g.intrinsics.fy * p.y() / p.z() + g.intrinsics.cy;
-    if (!g.InImage(u, v)) continue;
+    Eigen::Vector3d p;
+    double u, v;
+    if (!ProjectIntoImage(g, T, point->position, &p, &u, &v)) continue;
     const Eigen::Vector3d ray = point->position - centre;
     const double distance = ray.norm();
     if (distance < 0.8 * point->min_distance || distance > 1.2 * point->max_distance) continue;
