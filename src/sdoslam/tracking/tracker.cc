@@ -78,11 +78,16 @@ TrackingResult Tracker::Track(Frame frame, KeyFrame** new_keyframe, bool mapping
     ok = TrackReferenceKeyFrame(frame);
   }
   if (ok) ok = TrackLocalMap(frame, &result);
-  temporary_points_.clear();
+  // Drop the temporary points (no observations) and outliers from this frame, and the
+  // temporaries from the last frame, before the temporaries are freed.
   for (size_t i = 0; i < frame.size(); ++i) {
     MapPoint*& p = frame.map_points[i];
     if (p != nullptr && (p->bad || p->observations.empty() || frame.outlier[i])) p = nullptr;
   }
+  for (MapPoint*& p : last_frame_->map_points) {
+    if (p != nullptr && p->observations.empty()) p = nullptr;
+  }
+  temporary_points_.clear();
 
   state_ = ok ? TrackingState::kOk : TrackingState::kLost;
   result.state = state_;
