@@ -1,0 +1,72 @@
+#include "sdoslam/dynamic/motion_boundaries.h"
+
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+
+#include "sdoslam/core/error.h"
+
+namespace sdoslam {
+
+void MotionBoundaryOptions::Check() const {
+  if (!(k_magnitude > 0)) throw Error("motion_boundaries.k_magnitude must be positive");
+  if (!(k_orientation > 0)) throw Error("motion_boundaries.k_orientation must be positive");
+  if (!(strong > 0 && strong < 1)) throw Error("motion_boundaries.strong must be in (0, 1)");
+  if (!(threshold > 0 && threshold < 1))
+    throw Error("motion_boundaries.threshold must be in (0, 1)");
+  if (!(min_flow_for_angle >= 0)) throw Error("motion_boundaries.min_flow_for_angle must be >= 0");
+}
+
+MotionBoundaries ComputeMotionBoundaries(const cv::Mat& flow,
+                                         const MotionBoundaryOptions& options) {
+  options.Check();
+  CV_Assert(flow.type() == CV_32FC2);
+  cv::Mat uv[2];
+  cv::split(flow, uv);
+  // Sobel derivatives of both flow components (scaled to px per px: the 3x3 kernel sums to 8).
+  cv::Mat gradient_sq = cv::Mat::zeros(flow.size(), CV_32F);
+  for (const cv::Mat& component : uv) {
+    cv::Mat dx, dy;
+    cv::Sobel(component, dx, CV_32F, 1, 0, 3, 1.0 / 8.0);
+    cv::Sobel(component, dy, CV_32F, 0, 1, 3, 1.0 / 8.0);
+    gradient_sq += dx.mul(dx) + dy.mul(dy);
+  }
+  cv::Mat gradient;
+  cv::sqrt(gradient_sq, gradient);
+  MotionBoundaries out;
+  cv::exp(-options.k_magnitude * gradient, out.magnitude_term);
+  out.magnitude_term = 1.0 - out.magnitude_term;
+
+  // Largest angle between a pixel's flow vector and its 8 neighbours'.
+  const int rows = flow.rows, cols = flow.cols;
+  cv::Mat max_angle = cv::Mat::zeros(flow.size(), CV_32F);
+  const float min_flow = static_cast<float>(options.min_flow_for_angle);
+  for (int y = 0; y < rows; ++y) {
+    for (int x = 0; x < cols; ++x) {
+      const cv::Vec2f a = flow.at<cv::Vec2f>(y, x);
+      const float na = std::hypot(a[0], a[1]);
+      if (na < min_flow) continue;
+      float largest = 0;
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int yy = y + dy, xx = x + dx;
+          if ((dx == 0 && dy == 0) || yy < 0 || xx < 0 || yy >= rows || xx >= cols) continue;
+          const cv::Vec2f b = flow.at<cv::Vec2f>(yy, xx);
+          const float nb = std::hypot(b[0], b[1]);
+          if (nb < min_flow) continue;
+          const float c = std::clamp((a[0] * b[0] + a[1] * b[1]) / (na * nb), -1.0f, 1.0f);
+          largest = std::max(largest, std::acos(c));
+        }
+      }
+      max_angle.at<float>(y, x) = largest;
+    }
+  }
+  cv::exp(-options.k_orientation * max_angle, out.orientation_term);
+  out.orientation_term = 1.0 - out.orientation_term;
+
+  out.probability = out.magnitude_term.mul(out.orientation_term);
+  out.magnitude_term.copyTo(out.probability, out.magnitude_term > options.strong);
+  out.mask = out.probability > options.threshold;
+  return out;
+}
+
+}  // namespace sdoslam
