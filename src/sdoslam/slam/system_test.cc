@@ -41,15 +41,22 @@ RunResult RunSequence(const std::filesystem::path& folder, const CameraOptions& 
   return r;
 }
 
+// Renders `frames` frames of the static room under `motion` into dir/seq.
+std::filesystem::path RenderStaticRoom(const testing::TempDir& dir, synth::CameraMotion motion,
+                                       int frames) {
+  synth::SynthOptions options;
+  options.scenario = "static_room";
+  options.motion = motion;
+  options.frames = frames;
+  synth::WriteSequence(options, dir / "seq");
+  return dir / "seq";
+}
+
 class SyntheticStatic : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(SyntheticStatic, TrajectoryWithinOneCentimetre) {
   testing::TempDir dir;
-  synth::SynthOptions options;
-  options.scenario = "static_room";
-  options.motion = synth::ParseCameraMotion(GetParam());
-  options.frames = 200;
-  synth::WriteSequence(options, dir / "seq");
+  RenderStaticRoom(dir, synth::ParseCameraMotion(GetParam()), 200);
   const RunResult run = RunSequence(dir / "seq", synth::SyntheticCamera());
   ASSERT_EQ(run.trajectory.size(), 200u) << "frames were lost";
   EXPECT_GT(run.keyframes, 5u);  // the map grew: mapping and BA took part
@@ -73,11 +80,7 @@ TEST(SlamReal, Fr2Desk50WithinOneCentimetre) {
 
 TEST(SlamDeterminism, TwoRunsGiveBitIdenticalTrajectories) {
   testing::TempDir dir;
-  synth::SynthOptions options;
-  options.scenario = "static_room";
-  options.motion = synth::CameraMotion::kHalfsphere;
-  options.frames = 90;
-  synth::WriteSequence(options, dir / "seq");
+  RenderStaticRoom(dir, synth::CameraMotion::kHalfsphere, 90);
   const RunResult a = RunSequence(dir / "seq", synth::SyntheticCamera());
   const RunResult b = RunSequence(dir / "seq", synth::SyntheticCamera());
   ASSERT_EQ(a.trajectory.size(), b.trajectory.size());
@@ -92,11 +95,7 @@ TEST(SlamDeterminism, TwoRunsGiveBitIdenticalTrajectories) {
 
 TEST(SlamThreaded, MappingThreadGivesAnAccurateTrajectoryAndStopsCleanly) {
   testing::TempDir dir;
-  synth::SynthOptions options;
-  options.scenario = "static_room";
-  options.motion = synth::CameraMotion::kRpy;
-  options.frames = 150;
-  synth::WriteSequence(options, dir / "seq");
+  RenderStaticRoom(dir, synth::CameraMotion::kRpy, 150);
   const RunResult run =
       RunSequence(dir / "seq", synth::SyntheticCamera(), 0, {}, /*sequential=*/false);
   ASSERT_EQ(run.trajectory.size(), 150u);
@@ -120,10 +119,7 @@ TEST(SlamThreaded, MappingThreadGivesAnAccurateTrajectoryAndStopsCleanly) {
 
 TEST(SlamRobustness, UntrackableFrameIsLostAndTheRunGoesOn) {
   testing::TempDir dir;
-  synth::SynthOptions options;
-  options.scenario = "static_room";
-  options.frames = 60;
-  synth::WriteSequence(options, dir / "seq");
+  RenderStaticRoom(dir, synth::CameraMotion::kXyz, 60);  // the scenario's own motion
   const RunResult run = RunSequence(dir / "seq", synth::SyntheticCamera(), 0, {30});
   ASSERT_EQ(run.frames.size(), 60u);
   EXPECT_EQ(run.frames[29].state, TrackingState::kOk);

@@ -50,6 +50,24 @@ bool ProjectIntoImage(const FrameGeometry& g, const Eigen::Isometry3d& T_camera_
   return g.InImage(*u, *v);
 }
 
+// Where a map point should appear in a camera: in the image, within the point's
+// scale-invariance range and seen from less than 60° off its mean viewing direction.
+struct PredictedView {
+  Eigen::Vector3d p;  // camera frame
+  double u, v, distance, view_cos;
+};
+bool PredictInView(const FrameGeometry& g, const Eigen::Isometry3d& T_camera_world,
+                   const Eigen::Vector3d& centre, const MapPoint& point, PredictedView* view) {
+  if (!ProjectIntoImage(g, T_camera_world, point.position, &view->p, &view->u, &view->v))
+    return false;
+  const Eigen::Vector3d ray = point.position - centre;
+  view->distance = ray.norm();
+  if (view->distance < 0.8 * point.min_distance || view->distance > 1.2 * point.max_distance)
+    return false;
+  view->view_cos = ray.dot(point.normal) / view->distance;
+  return view->view_cos >= 0.5;
+}
+
 }  // namespace
 
 int SearchByProjection(Frame& current, const Frame& last, double radius) {
@@ -106,14 +124,9 @@ int SearchLocalPoints(Frame& current, const std::vector<MapPoint*>& points, uint
   int matches = 0;
   for (MapPoint* point : points) {
     if (point->bad || point->last_seen_frame == frame_stamp) continue;  // already matched
-    Eigen::Vector3d p;
-    double u, v;
-    if (!ProjectIntoImage(g, T, point->position, &p, &u, &v)) continue;
-    const Eigen::Vector3d ray = point->position - centre;
-    const double distance = ray.norm();
-    if (distance < 0.8 * point->min_distance || distance > 1.2 * point->max_distance) continue;
-    const double view_cos = ray.dot(point->normal) / distance;
-    if (view_cos < 0.5) continue;
+    PredictedView view;
+    if (!PredictInView(g, T, centre, *point, &view)) continue;
+    const auto& [p, u, v, distance, view_cos] = view;
     ++point->visible;
     const int level = point->PredictLevel(distance, g);
     const double radius =
@@ -191,13 +204,9 @@ int Fuse(Map& map, KeyFrame* kf, const std::vector<MapPoint*>& points) {
   int fused = 0;
   for (MapPoint* point : points) {
     if (point == nullptr || point->bad || point->observations.count(kf->id)) continue;
-    Eigen::Vector3d p;
-    double u, v;
-    if (!ProjectIntoImage(g, T, point->position, &p, &u, &v)) continue;
-    const Eigen::Vector3d ray = point->position - centre;
-    const double distance = ray.norm();
-    if (distance < 0.8 * point->min_distance || distance > 1.2 * point->max_distance) continue;
-    if (ray.dot(point->normal) < 0.5 * distance) continue;
+    PredictedView view;
+    if (!PredictInView(g, T, centre, *point, &view)) continue;
+    const auto& [p, u, v, distance, view_cos] = view;
     const int level = point->PredictLevel(distance, g);
     const double radius = 3.0 * g.scale[static_cast<size_t>(level)];
     int best = 256, best_index = -1;
