@@ -47,8 +47,12 @@ void RunBench(const BenchArgs& args) {
   options.sequential = !args.threaded;
   std::vector<double> frame_ms, mapping_ms, ate;
   for (int run = 0; run < args.runs; ++run) {
-    const RunSummary s = RunOnDataset(dataset, "", camera, options, 0,
-                                      std::filesystem::path(args.work) / fmt::format("run{}", run));
+    RunOptions run_options;
+    run_options.dataset = dataset;
+    run_options.camera = camera;
+    run_options.slam = options;
+    run_options.out = std::filesystem::path(args.work) / fmt::format("run{}", run);
+    const RunSummary s = RunOnDataset(run_options);
     frame_ms.push_back(s.median_frame_ms);
     mapping_ms.push_back(s.median_mapping_ms);
     if (s.evaluation) ate.push_back(s.evaluation->ate.translation.rmse);

@@ -39,8 +39,11 @@ void RunDemo(const DemoArgs& args) {
     std::cout << fmt::format(
         "{}: rendered {} frames in {:.1f} s; moving objects cover {:.0f} % of the image\n",
         scenario, rendered.frames, rendered.total_seconds, 100.0 * rendered.dynamic_fraction_mean);
-    RunSummary run = RunOnDataset(sequence, "", synth::SyntheticCamera(), SlamOptions{}, 0,
-                                  out / "slam" / scenario);
+    RunOptions run_options;
+    run_options.dataset = sequence;
+    run_options.camera = synth::SyntheticCamera();
+    run_options.out = out / "slam" / scenario;
+    RunSummary run = RunOnDataset(run_options);
     std::cout << FormatRunSummary(run) << '\n';
     if (run.evaluation) {
       run.evaluation->label = scenario;

@@ -5,58 +5,156 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <opencv2/imgcodecs.hpp>
 
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
+#include "sdoslam/dynamic/overlay.h"
 #include "sdoslam/io/tum_dataset.h"
 
 namespace sdoslam {
-namespace {}  // namespace
 
-RunSummary RunOnDataset(const std::filesystem::path& dataset_folder,
-                        const std::filesystem::path& associations, const CameraOptions& camera,
-                        const SlamOptions& options, size_t max_frames,
-                        const std::filesystem::path& out) {
+const char* ToString(RunMode mode) {
+  switch (mode) {
+    case RunMode::kConventional:
+      return "conventional";
+    case RunMode::kSdo:
+      return "sdo";
+    case RunMode::kOracle:
+      return "oracle";
+  }
+  return "?";
+}
+
+RunMode ParseRunMode(const std::string& name) {
+  for (RunMode m : {RunMode::kConventional, RunMode::kSdo, RunMode::kOracle}) {
+    if (name == ToString(m)) return m;
+  }
+  throw Error("unknown mode '" + name + "' (known: conventional, sdo, oracle)");
+}
+
+namespace {
+
+// Ground-truth dynamic masks of a synthetic sequence as a label image.
+cv::Mat LoadOracleLabels(const std::filesystem::path& dataset, const std::filesystem::path& rgb,
+                         cv::Size size) {
+  const auto path = dataset / "dynamic" / rgb.filename();
+  const cv::Mat mask = cv::imread(path.string(), cv::IMREAD_GRAYSCALE);
+  if (mask.empty()) throw Error(path.string() + ": cannot read the ground-truth dynamic mask");
+  if (mask.size() != size) throw Error(path.string() + ": mask size differs from the images");
+  cv::Mat labels(size, CV_8U, cv::Scalar(kStatic));
+  labels.setTo(kMovingUnknown, mask);
+  return labels;
+}
+
+}  // namespace
+
+RunSummary RunOnDataset(const RunOptions& run) {
   TumDatasetOptions dataset_options;
-  dataset_options.associations = associations;
-  const TumDataset dataset(dataset_folder, camera, dataset_options);
+  dataset_options.associations = run.associations;
+  const TumDataset dataset(run.dataset, run.camera, dataset_options);
   RunSummary summary;
-  summary.frames = max_frames > 0 ? std::min(dataset.size(), max_frames) : dataset.size();
+  summary.frames =
+      run.max_frames > 0 ? std::min(dataset.size(), run.max_frames) : dataset.size();
+  const cv::Size image_size(run.camera.width, run.camera.height);
+  std::vector<std::filesystem::path> rgb_paths;
+  for (size_t i = 0; i < summary.frames; ++i) rgb_paths.push_back(dataset.entries()[i].rgb_path);
+
+  // Everything that can be wrong with the front end's inputs fails here, before the first frame.
+  std::unique_ptr<FrontEnd> front_end;
+  if (run.mode == RunMode::kSdo) {
+    front_end = std::make_unique<FrontEnd>(run.front_end, run.dataset, image_size, rgb_paths);
+  }
+  if (run.mode == RunMode::kOracle) {
+    for (const auto& rgb : rgb_paths) {
+      const auto path = run.dataset / "dynamic" / rgb.filename();
+      if (!std::filesystem::exists(path))
+        throw Error(path.string() + ": oracle mode needs the ground-truth dynamic masks of a "
+                    "synthetic sequence (sdoslam synth writes them)");
+    }
+  }
+  std::optional<MaskEvaluator> mask_evaluator;
+  if (run.mode != RunMode::kConventional && std::filesystem::is_directory(run.dataset / "dynamic") &&
+      std::filesystem::is_directory(run.dataset / "instance")) {
+    mask_evaluator.emplace(run.dataset);
+  }
 
   YAML::Emitter resolved;
   resolved << YAML::BeginMap;
-  WriteCameraOptions(camera, &resolved);
-  WriteSlamOptions(options, &resolved);
+  resolved << YAML::Key << "mode" << YAML::Value << ToString(run.mode);
+  WriteCameraOptions(run.camera, &resolved);
+  WriteSlamOptions(run.slam, &resolved);
+  if (run.mode == RunMode::kSdo) WriteFrontEndOptions(run.front_end, &resolved);
   resolved << YAML::EndMap;
 
-  System slam(camera, options);
+  std::filesystem::create_directories(run.out);
+  if (run.save_overlays) std::filesystem::create_directories(run.out / "overlays");
+  if (run.save_masks) std::filesystem::create_directories(run.out / "masks");
+
+  System slam(run.camera, run.slam);
   std::string log =
-      "index,timestamp,state,features,features_with_depth,matches,inliers,keyframe,features_ms,"
-      "tracking_ms,"
+      "index,timestamp,state,features,features_with_depth,dynamic_features,matches,inliers,"
+      "keyframe,front_end_ms,segment_ms,detect_ms,flow_ms,classify_ms,features_ms,tracking_ms,"
       "mapping_ms\n";
-  std::vector<double> frame_ms, mapping_ms;
+  std::string feature_log = "index,x,y,label\n";
+  std::vector<double> frame_ms, front_end_ms, mapping_ms;
   int best_depth_features = 0;
   for (size_t i = 0; i < summary.frames; ++i) {
     const RgbdFrame frame = dataset.Load(i);
+    cv::Mat labels;
+    std::optional<SdoResult> sdo;
+    FrontEndTiming front_timing;
+    if (front_end) {
+      FrontEndFrame input{i, frame.timestamp, rgb_paths[i], frame.bgr, frame.depth};
+      sdo = front_end->Process(input, &front_timing);
+      labels = sdo->labels;
+      front_end_ms.push_back(front_timing.total());
+    } else if (run.mode == RunMode::kOracle) {
+      labels = LoadOracleLabels(run.dataset, rgb_paths[i], image_size);
+    }
     FrameTiming timing;
-    const TrackingResult r = slam.TrackRgbd(i, frame.timestamp, frame.bgr, frame.depth, &timing);
+    const TrackingResult r =
+        slam.TrackRgbd(i, frame.timestamp, frame.bgr, frame.depth, &timing, labels);
     if (r.state == TrackingState::kNotInitialized) {
       best_depth_features = std::max(best_depth_features, r.features_with_depth);
       if (++summary.not_initialized >= 30 && slam.map().keyframes().empty()) {
         throw Error(
             fmt::format("{}: the first {} frames have too little depth to start the map (best: {} "
-                        "features with depth, "
-                        "{} needed)",
-                        dataset_folder.string(), summary.not_initialized, best_depth_features,
-                        options.tracking.min_initial_depth_features));
+                        "features with depth, {} needed)",
+                        run.dataset.string(), summary.not_initialized, best_depth_features,
+                        run.slam.tracking.min_initial_depth_features));
       }
     }
     summary.lost += r.state == TrackingState::kLost;
     frame_ms.push_back(timing.features_ms + timing.tracking_ms);
-    log +=
-        fmt::format("{},{:.6f},{},{},{},{},{},{},{:.2f},{:.2f},{:.2f}\n", i, r.timestamp,
-                    ToString(r.state), r.features, r.features_with_depth, r.matches, r.inliers,
-                    r.keyframe ? 1 : 0, timing.features_ms, timing.tracking_ms, timing.mapping_ms);
+    const int dynamic_features = static_cast<int>(
+        std::count_if(r.feature_labels.begin(), r.feature_labels.end(), [](uint8_t l) { return l != 0; }));
+    log += fmt::format(
+        "{},{:.6f},{},{},{},{},{},{},{},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f}\n",
+        i, r.timestamp, ToString(r.state), r.features, r.features_with_depth, dynamic_features,
+        r.matches, r.inliers, r.keyframe ? 1 : 0, front_timing.total(), front_timing.segment_ms,
+        front_timing.detect_ms, front_timing.flow_ms, front_timing.classify_ms, timing.features_ms,
+        timing.tracking_ms, timing.mapping_ms);
+    if (!labels.empty() && mask_evaluator) {
+      mask_evaluator->AddFrame(rgb_paths[i], labels, r.feature_points, r.feature_labels);
+    }
+    const std::string name = rgb_paths[i].filename().string();
+    if (run.save_overlays) {
+      const cv::Mat empty_labels(image_size, CV_8U, cv::Scalar(0));
+      const cv::Mat overlay = DrawOverlay(frame.bgr, labels.empty() ? empty_labels : labels,
+                                          sdo ? &*sdo : nullptr, r.feature_points, r.feature_labels);
+      if (!cv::imwrite((run.out / "overlays" / name).string(), overlay))
+        throw Error((run.out / "overlays" / name).string() + ": cannot write");
+    }
+    if (run.save_masks) {
+      const cv::Mat empty_labels(image_size, CV_8U, cv::Scalar(0));
+      if (!cv::imwrite((run.out / "masks" / name).string(), labels.empty() ? empty_labels : labels))
+        throw Error((run.out / "masks" / name).string() + ": cannot write");
+      for (size_t k = 0; k < r.feature_points.size(); ++k) {
+        feature_log += fmt::format("{},{:.2f},{:.2f},{}\n", i, r.feature_points[k].x,
+                                   r.feature_points[k].y, r.feature_labels[k]);
+      }
+    }
     spdlog::debug("frame {} {} inliers {} keyframe {}", i, ToString(r.state), r.inliers,
                   r.keyframe);
   }
@@ -67,17 +165,21 @@ RunSummary RunOnDataset(const std::filesystem::path& dataset_folder,
   summary.keyframes = slam.map().GoodKeyFrames();
   summary.map_points = slam.map().GoodPoints();
   summary.median_frame_ms = ComputeErrorStats(frame_ms).median;
+  summary.median_front_end_ms = ComputeErrorStats(front_end_ms).median;
   summary.median_mapping_ms = ComputeErrorStats(mapping_ms).median;
+  if (mask_evaluator) summary.masks = mask_evaluator->result();
 
-  WriteTumTrajectory(out / "CameraTrajectory.txt", summary.trajectory);
-  WriteTumTrajectory(out / "KeyFrameTrajectory.txt", slam.KeyFrameTrajectory());
-  WriteFileAtomically(out / "config.yaml", [&](std::ostream& o) { o << resolved.c_str() << '\n'; });
-  WriteFileAtomically(out / "frames.csv", [&](std::ostream& o) { o << log; });
+  WriteTumTrajectory(run.out / "CameraTrajectory.txt", summary.trajectory);
+  WriteTumTrajectory(run.out / "KeyFrameTrajectory.txt", slam.KeyFrameTrajectory());
+  WriteFileAtomically(run.out / "config.yaml", [&](std::ostream& o) { o << resolved.c_str() << '\n'; });
+  WriteFileAtomically(run.out / "frames.csv", [&](std::ostream& o) { o << log; });
+  if (run.save_masks)
+    WriteFileAtomically(run.out / "features.csv", [&](std::ostream& o) { o << feature_log; });
 
-  const auto gt_path = dataset_folder / "groundtruth.txt";
+  const auto gt_path = run.dataset / "groundtruth.txt";
   if (std::filesystem::exists(gt_path) && summary.trajectory.size() >= 3) {
     summary.evaluation =
-        EvaluateEstimate(ReadTumTrajectory(gt_path), summary.trajectory, "sdoslam", {});
+        EvaluateEstimate(ReadTumTrajectory(gt_path), summary.trajectory, ToString(run.mode), {});
   }
   return summary;
 }
@@ -86,9 +188,12 @@ std::string FormatRunSummary(const RunSummary& s) {
   return fmt::format(
       "{} frames: {} tracked, {} lost, {} before initialisation; {} keyframes, {} map points\n"
       "median per frame: {:.1f} ms (features + tracking); median local mapping per keyframe: "
-      "{:.1f} ms\n",
+      "{:.1f} ms{}\n",
       s.frames, s.tracked, s.lost, s.not_initialized, s.keyframes, s.map_points, s.median_frame_ms,
-      s.median_mapping_ms);
+      s.median_mapping_ms,
+      s.median_front_end_ms > 0
+          ? fmt::format("; dynamic front end {:.1f} ms per frame", s.median_front_end_ms)
+          : "");
 }
 
 }  // namespace sdoslam

@@ -1,32 +1,55 @@
 #pragma once
 
 #include <filesystem>
+#include <optional>
 #include <string>
 
 #include "sdoslam/core/camera.h"
+#include "sdoslam/dynamic/front_end.h"
+#include "sdoslam/eval/mask_metrics.h"
 #include "sdoslam/eval/report.h"
 #include "sdoslam/io/trajectory.h"
 #include "sdoslam/slam/system.h"
 
 namespace sdoslam {
 
+// How features on moving things are treated.
+enum class RunMode {
+  kConventional,  // no front end: every feature is used (ORB-SLAM2 behaviour)
+  kSdo,           // the paper's front end decides (segments + detections + motion boundaries)
+  kOracle,        // ground-truth dynamic masks of a synthetic sequence: the ceiling for kSdo
+};
+const char* ToString(RunMode mode);
+RunMode ParseRunMode(const std::string& name);  // throws Error naming the known modes
+
+struct RunOptions {
+  std::filesystem::path dataset;
+  std::filesystem::path associations;  // optional explicit rgb/depth associations
+  std::filesystem::path out;
+  CameraOptions camera;
+  SlamOptions slam;
+  FrontEndOptions front_end;
+  RunMode mode = RunMode::kConventional;
+  size_t max_frames = 0;       // 0: all
+  bool save_overlays = false;  // out/overlays/<rgb name>.png
+  bool save_masks = false;     // out/masks/<rgb name>.png (label image) and out/features.csv
+};
+
 struct RunSummary {
   size_t frames = 0, tracked = 0, lost = 0, not_initialized = 0;
   size_t keyframes = 0, map_points = 0;
-  double median_frame_ms = 0;    // features + tracking
-  double median_mapping_ms = 0;  // per keyframe
+  double median_frame_ms = 0;      // features + tracking
+  double median_front_end_ms = 0;  // the dynamic front end (0 in conventional mode)
+  double median_mapping_ms = 0;    // per keyframe
   Trajectory trajectory;
   std::optional<EstimateEvaluation> evaluation;  // when the dataset has groundtruth.txt
+  std::optional<MaskEvaluation> masks;  // when the dataset has ground-truth masks (not conventional)
 };
 
-// Runs SLAM over the sequence in `dataset` and writes CameraTrajectory.txt,
-// KeyFrameTrajectory.txt, config.yaml (resolved) and frames.csv (per-frame log) into `out`.
-// Throws Error for bad inputs before the first frame, and when the first 30 frames cannot start
-// the map (too little depth).
-RunSummary RunOnDataset(const std::filesystem::path& dataset,
-                        const std::filesystem::path& associations, const CameraOptions& camera,
-                        const SlamOptions& options, size_t max_frames,
-                        const std::filesystem::path& out);
+// Runs SLAM over the sequence and writes CameraTrajectory.txt, KeyFrameTrajectory.txt,
+// config.yaml (resolved) and frames.csv (per-frame log) into `out`. Throws Error for bad inputs
+// before the first frame, and when the first 30 frames cannot start the map (too little depth).
+RunSummary RunOnDataset(const RunOptions& options);
 
 std::string FormatRunSummary(const RunSummary& summary);
 

@@ -22,21 +22,42 @@ struct RunArgs {
   std::string associations;
   int max_frames = 0;
   bool sequential = false;
+  std::string mode = "conventional";
+  std::string segmenter, detector, detector_model, flow;
+  bool save_overlays = false;
+  bool save_masks = false;
 };
 
 void RunSlam(const RunArgs& args) {
   // Everything that can be wrong with the inputs is found before the first frame.
+  RunOptions run;
+  run.mode = ParseRunMode(args.mode);
   ConfigMap root = ConfigMap::LoadFile(args.config);
   std::optional<ConfigMap> camera_section = root.Section("camera");
   if (!camera_section) throw Error(args.config + ": missing the 'camera:' section");
-  const CameraOptions camera = ReadCameraOptions(*camera_section);
-  SlamOptions options = ReadSlamOptions(root);
+  run.camera = ReadCameraOptions(*camera_section);
+  run.slam = ReadSlamOptions(root);
+  run.front_end = ReadFrontEndOptions(root);
   root.RejectUnknownKeys();
-  options.sequential = args.sequential;
-  const RunSummary s = RunOnDataset(args.dataset, args.associations, camera, options,
-                                    static_cast<size_t>(args.max_frames), args.out);
+  // Command-line backends override the config's.
+  if (!args.segmenter.empty()) run.front_end.segmenter = args.segmenter;
+  if (!args.detector.empty()) run.front_end.detector = args.detector;
+  if (!args.detector_model.empty()) run.front_end.detector_model = args.detector_model;
+  if (!args.flow.empty()) run.front_end.flow = args.flow;
+  run.front_end.Check();
+  run.slam.sequential = args.sequential;
+  run.dataset = args.dataset;
+  run.associations = args.associations;
+  run.out = args.out;
+  run.max_frames = static_cast<size_t>(args.max_frames);
+  run.save_overlays = args.save_overlays;
+  run.save_masks = args.save_masks;
+  const RunSummary s = RunOnDataset(run);
   std::cout << FormatRunSummary(s) << "wrote " << args.out
-            << "/CameraTrajectory.txt, KeyFrameTrajectory.txt, config.yaml, frames.csv\n";
+            << "/CameraTrajectory.txt, KeyFrameTrajectory.txt, config.yaml, frames.csv"
+            << (args.save_masks ? ", masks/, features.csv" : "")
+            << (args.save_overlays ? ", overlays/" : "") << "\n";
+  if (s.masks) std::cout << '\n' << FormatMaskEvaluation(*s.masks, "dynamic masks");
   if (s.evaluation) std::cout << '\n' << FormatTable({*s.evaluation}, EvaluationOptions{});
 }
 
@@ -48,7 +69,7 @@ void AddRunCommand(CLI::App& app) {
   cmd->add_option("--dataset", args->dataset, "sequence folder (rgb.txt, depth.txt, rgb/, depth/)")
       ->required();
   cmd->add_option("--config", args->config,
-                  "config YAML: camera: and optional orb:, rgbd:, tracking:, mapping:")
+                  "config YAML: camera: and optional orb:, rgbd:, tracking:, mapping:, dynamic:")
       ->required();
   cmd->add_option("--out", args->out, "output folder")->required();
   cmd->add_option("--associations", args->associations, "explicit rgb/depth association file");
@@ -56,6 +77,22 @@ void AddRunCommand(CLI::App& app) {
       ->check(CLI::NonNegativeNumber);
   cmd->add_flag("--sequential", args->sequential,
                 "map inline after each keyframe: bit-identical runs (default: a mapping thread)");
+  cmd->add_option("--mode", args->mode,
+                  "conventional (all features), sdo (the dynamic front end), oracle (ground-truth "
+                  "masks of a synthetic sequence)")
+      ->capture_default_str();
+  cmd->add_option("--segmenter", args->segmenter, "override dynamic.segmenter.backend: rgbd, "
+                  "onnx-yoloseg, file");
+  cmd->add_option("--detector", args->detector, "override dynamic.detector.backend: nanodet, "
+                  "fastestdet, yolov8, hog, file, none");
+  cmd->add_option("--detector-model", args->detector_model, "ONNX file of the detector");
+  cmd->add_option("--flow", args->flow, "override dynamic.flow.backend: dis, farneback, onnx");
+  cmd->add_flag("--save-overlays", args->save_overlays,
+                "write overlays/<frame>.png: features (static green, dynamic red), segments, "
+                "motion boundaries, detections");
+  cmd->add_flag("--save-masks", args->save_masks,
+                "write masks/<frame>.png (0 static, 1 known movable, 2 moving unknown) and "
+                "features.csv, for sdoslam eval-masks");
   cmd->callback([args] { RunSlam(*args); });
 }
 

@@ -48,6 +48,17 @@ YAML::Node ConfigMap::Child(const std::string& key) {
   return node[key];
 }
 
+void ConfigMap::ReadList(const std::string& key, std::vector<std::string>* values) {
+  const YAML::Node child = Child(key);
+  if (!child) return;
+  if (!child.IsSequence()) throw Error(Where(child) + Path(key) + ": expected a list [a, b, ...]");
+  values->clear();
+  for (const YAML::Node& item : child) {
+    if (!item.IsScalar()) throw Error(Where(item) + Path(key) + ": list items must be single values");
+    values->push_back(item.Scalar());
+  }
+}
+
 std::optional<ConfigMap> ConfigMap::Section(const std::string& key) {
   const YAML::Node child = Child(key);
   if (!child) return std::nullopt;

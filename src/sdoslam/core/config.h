@@ -6,6 +6,7 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <vector>
 
 #include "sdoslam/core/error.h"
 
@@ -38,6 +39,9 @@ class ConfigMap {
                   TypeName<T>());
     }
   }
+
+  // Reads an optional list of text values ([a, b] or a block sequence).
+  void ReadList(const std::string& key, std::vector<std::string>* values);
 
   // Nested mapping `key`, or nullopt when absent. Throws when present but not a mapping.
   std::optional<ConfigMap> Section(const std::string& key);

@@ -36,6 +36,18 @@ TEST(ConfigMap, ReadsValuesAndKeepsDefaultsForAbsentKeys) {
   EXPECT_FALSE(root.Section("absent").has_value());
 }
 
+TEST(ConfigMap, ReadsListsAndRejectsScalarsWhereAListIsExpected) {
+  ConfigMap root = ConfigMap::LoadString("a: [person, dog]\nb:\n  - cat\nc: 1\n", "l.yaml");
+  std::vector<std::string> a, b, c = {"kept"}, absent = {"default"};
+  root.ReadList("a", &a);
+  root.ReadList("b", &b);
+  root.ReadList("absent", &absent);
+  EXPECT_EQ(a, (std::vector<std::string>{"person", "dog"}));
+  EXPECT_EQ(b, (std::vector<std::string>{"cat"}));
+  EXPECT_EQ(absent, (std::vector<std::string>{"default"}));
+  EXPECT_EQ(MessageOf([&] { root.ReadList("c", &c); }), "l.yaml:4: c: expected a list [a, b, ...]");
+}
+
 TEST(ConfigMap, UnknownKeyIsNamedWithItsPathAndLine) {
   ConfigMap root = ConfigMap::LoadString("camera:\n  fx: 500\n  fxx: 1\n", "cam.yaml");
   auto camera = root.Section("camera");

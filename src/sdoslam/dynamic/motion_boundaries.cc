@@ -36,28 +36,37 @@ MotionBoundaries ComputeMotionBoundaries(const cv::Mat& flow,
   cv::exp(-options.k_magnitude * gradient, out.magnitude_term);
   out.magnitude_term = 1.0 - out.magnitude_term;
 
-  // Largest angle between a pixel's flow vector and its 8 neighbours'.
+  // Largest angle between a pixel's flow vector and its 8 neighbours'. Directions are computed
+  // once (cv::phase) and compared as wrapped differences: the same angle as acos of the
+  // normalised dot product, at a fraction of the cost.
   const int rows = flow.rows, cols = flow.cols;
+  cv::Mat direction, length;
+  cv::phase(uv[0], uv[1], direction);
+  cv::magnitude(uv[0], uv[1], length);
   cv::Mat max_angle = cv::Mat::zeros(flow.size(), CV_32F);
   const float min_flow = static_cast<float>(options.min_flow_for_angle);
+  constexpr float kTwoPi = static_cast<float>(2 * M_PI);
   for (int y = 0; y < rows; ++y) {
+    const float* theta = direction.ptr<float>(y);
+    const float* norm = length.ptr<float>(y);
+    float* out_row = max_angle.ptr<float>(y);
     for (int x = 0; x < cols; ++x) {
-      const cv::Vec2f a = flow.at<cv::Vec2f>(y, x);
-      const float na = std::hypot(a[0], a[1]);
-      if (na < min_flow) continue;
+      if (norm[x] < min_flow) continue;
       float largest = 0;
       for (int dy = -1; dy <= 1; ++dy) {
+        const int yy = y + dy;
+        if (yy < 0 || yy >= rows) continue;
+        const float* theta_n = direction.ptr<float>(yy);
+        const float* norm_n = length.ptr<float>(yy);
         for (int dx = -1; dx <= 1; ++dx) {
-          const int yy = y + dy, xx = x + dx;
-          if ((dx == 0 && dy == 0) || yy < 0 || xx < 0 || yy >= rows || xx >= cols) continue;
-          const cv::Vec2f b = flow.at<cv::Vec2f>(yy, xx);
-          const float nb = std::hypot(b[0], b[1]);
-          if (nb < min_flow) continue;
-          const float c = std::clamp((a[0] * b[0] + a[1] * b[1]) / (na * nb), -1.0f, 1.0f);
-          largest = std::max(largest, std::acos(c));
+          const int xx = x + dx;
+          if ((dx == 0 && dy == 0) || xx < 0 || xx >= cols || norm_n[xx] < min_flow) continue;
+          float d = std::abs(theta[x] - theta_n[xx]);
+          if (d > kTwoPi - d) d = kTwoPi - d;
+          largest = std::max(largest, d);
         }
       }
-      max_angle.at<float>(y, x) = largest;
+      out_row[x] = largest;
     }
   }
   cv::exp(-options.k_orientation * max_angle, out.orientation_term);

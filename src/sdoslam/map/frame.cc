@@ -1,5 +1,6 @@
 #include "sdoslam/map/frame.h"
 
+#include <algorithm>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
@@ -47,7 +48,7 @@ Frame::Frame(size_t frame_index, double time, const cv::Mat& bgr, const cv::Mat&
   right_u.assign(n, -1.0f);
   map_points.assign(n, nullptr);
   outlier.assign(n, false);
-  grid_.assign(FrameGeometry::kGridCols * FrameGeometry::kGridRows, {});
+  label.assign(n, 0);
   for (size_t i = 0; i < n; ++i) {
     const int u = static_cast<int>(std::lround(keypoints[i].pt.x)),
               v = static_cast<int>(std::lround(keypoints[i].pt.y));
@@ -58,6 +59,30 @@ Frame::Frame(size_t frame_index, double time, const cv::Mat& bgr, const cv::Mat&
         right_u[i] = static_cast<float>(undistorted[i].x - geometry->intrinsics.bf / d);
       }
     }
+  }
+  BuildGrid();
+}
+
+void Frame::SetLabels(const cv::Mat& label_image) {
+  label.assign(size(), 0);
+  if (!label_image.empty()) {
+    CV_Assert(label_image.type() == CV_8UC1);
+    for (size_t i = 0; i < size(); ++i) {
+      const int u = std::clamp(static_cast<int>(std::lround(keypoints[i].pt.x)), 0,
+                               label_image.cols - 1);
+      const int v = std::clamp(static_cast<int>(std::lround(keypoints[i].pt.y)), 0,
+                               label_image.rows - 1);
+      label[i] = label_image.at<uint8_t>(v, u);
+      if (label[i] != 0) map_points[i] = nullptr;
+    }
+  }
+  BuildGrid();
+}
+
+void Frame::BuildGrid() {
+  grid_.assign(FrameGeometry::kGridCols * FrameGeometry::kGridRows, {});
+  for (size_t i = 0; i < size(); ++i) {
+    if (label[i] != 0) continue;
     const int gx =
         static_cast<int>((undistorted[i].x - geometry->min_x) * geometry->grid_cell_inv_w);
     const int gy =

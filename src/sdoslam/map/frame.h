@@ -44,6 +44,13 @@ class Frame {
   std::vector<int> FeaturesInArea(double u, double v, double radius, int min_level = -1,
                                   int max_level = -1) const;
   bool HasDepth(int i) const { return depth[static_cast<size_t>(i)] > 0; }
+  // Features on things judged dynamic (label != 0) are kept for drawing and evaluation, but
+  // tracking and mapping never match them nor make map points from them.
+  bool IsStatic(int i) const { return label[static_cast<size_t>(i)] == 0; }
+  // Labels each feature from `label_image` (CV_8U, image size, 0 = static) at its detected
+  // position and removes the non-static ones from the position grid. An empty image clears
+  // all labels. Call before tracking the frame.
+  void SetLabels(const cv::Mat& label_image);
   // Keypoint i back-projected with its depth, in world coordinates at the frame's pose.
   Eigen::Vector3d UnprojectWorld(int i) const;
   PointObservation Observation(int i) const;
@@ -59,9 +66,11 @@ class Frame {
   cv::Mat descriptors;                // N x 32, CV_8U
   std::vector<MapPoint*> map_points;  // matched map point per feature, or nullptr
   std::vector<bool> outlier;
+  std::vector<uint8_t> label;  // 0 = static; otherwise the dynamic label of the front end
   Eigen::Isometry3d T_camera_world = Eigen::Isometry3d::Identity();
 
  private:
+  void BuildGrid();  // static features only
   std::vector<std::vector<int>> grid_;
 };
 

@@ -119,12 +119,14 @@ int LocalMapper::TriangulateNewPoints(KeyFrame* kf) {
     std::vector<int> free_other;
     for (size_t j = 0; j < other->frame.size(); ++j) {
       const MapPoint* p = other->frame.map_points[j];
-      if (p == nullptr || p->bad) free_other.push_back(static_cast<int>(j));
+      if ((p == nullptr || p->bad) && other->frame.IsStatic(static_cast<int>(j)))
+        free_other.push_back(static_cast<int>(j));
     }
     std::vector<bool> used(other->frame.size(), false);
     for (size_t i = 0; i < kf->frame.size(); ++i) {
       const MapPoint* existing = kf->frame.map_points[i];
-      if (existing != nullptr && !existing->bad) continue;
+      if ((existing != nullptr && !existing->bad) || !kf->frame.IsStatic(static_cast<int>(i)))
+        continue;
       const Eigen::Vector3d x1(kf->frame.undistorted[i].x, kf->frame.undistorted[i].y, 1.0);
       const Eigen::Vector3d line = F * x1;
       const double line_norm2 = line.x() * line.x() + line.y() * line.y();

@@ -134,14 +134,21 @@ std::vector<double> System::MappingTimes() const {
 }
 
 TrackingResult System::TrackRgbd(size_t index, double timestamp, const cv::Mat& bgr,
-                                 const cv::Mat& depth, FrameTiming* timing) {
+                                 const cv::Mat& depth, FrameTiming* timing,
+                                 const cv::Mat& dynamic_labels) {
   const CameraOptions& c = geometry_->camera.options();
   if (bgr.cols != c.width || bgr.rows != c.height || depth.size() != bgr.size()) {
     throw Error("frame " + std::to_string(index) + ": images are not " + std::to_string(c.width) +
                 "x" + std::to_string(c.height));
   }
   auto start = std::chrono::steady_clock::now();
+  if (!dynamic_labels.empty() &&
+      (dynamic_labels.size() != bgr.size() || dynamic_labels.type() != CV_8UC1)) {
+    throw Error("frame " + std::to_string(index) +
+                ": the dynamic label image is not 8-bit single-channel of the frame's size");
+  }
   Frame frame(index, timestamp, bgr, depth, geometry_, extractor_);
+  if (!dynamic_labels.empty()) frame.SetLabels(dynamic_labels);
   FrameTiming t;
   t.features_ms = MsSince(start);
   start = std::chrono::steady_clock::now();

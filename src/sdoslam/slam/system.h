@@ -52,8 +52,11 @@ class System {
   System& operator=(const System&) = delete;
 
   // bgr: CV_8UC3; depth: CV_32FC1 metres (0 = none), registered to the colour image.
+  // dynamic_labels: optional CV_8U image (0 = static) from a dynamic-object front end;
+  // features on non-zero pixels are never tracked nor mapped.
   TrackingResult TrackRgbd(size_t index, double timestamp, const cv::Mat& bgr, const cv::Mat& depth,
-                           FrameTiming* timing = nullptr);
+                           FrameTiming* timing = nullptr,
+                           const cv::Mat& dynamic_labels = cv::Mat());
 
   // Every tracked frame (lost ones left out), with its pose relative to its reference keyframe
   // composed with that keyframe's current (refined) pose. T_world_camera per pose.

@@ -173,6 +173,7 @@ int SearchByDescriptor(Frame& current, const KeyFrame& keyframe) {
     int best = 256, second = 256, best_index = -1;
     const uint8_t* d_kf = keyframe.frame.descriptors.ptr<uint8_t>(static_cast<int>(i));
     for (size_t j = 0; j < current.size(); ++j) {
+      if (!current.IsStatic(static_cast<int>(j))) continue;
       const int d = DescriptorDistance(d_kf, current.descriptors.ptr<uint8_t>(static_cast<int>(j)));
       if (d < best) {
         second = best;

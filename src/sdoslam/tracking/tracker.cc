@@ -46,6 +46,9 @@ TrackingResult Tracker::Track(Frame frame, KeyFrame** new_keyframe, bool mapping
   result.features = static_cast<int>(frame.size());
   for (size_t i = 0; i < frame.size(); ++i)
     result.features_with_depth += frame.HasDepth(static_cast<int>(i));
+  result.feature_labels = frame.label;
+  result.feature_points.reserve(frame.size());
+  for (const cv::KeyPoint& k : frame.keypoints) result.feature_points.push_back(k.pt);
 
   if (state_ == TrackingState::kNotInitialized) {
     if (Initialize(frame)) {
@@ -88,6 +91,8 @@ TrackingResult Tracker::Track(Frame frame, KeyFrame** new_keyframe, bool mapping
     if (p != nullptr && p->observations.empty()) p = nullptr;
   }
   temporary_points_.clear();
+  result.feature_tracked.assign(frame.size(), 0);
+  for (size_t i = 0; i < frame.size(); ++i) result.feature_tracked[i] = frame.map_points[i] != nullptr;
 
   state_ = ok ? TrackingState::kOk : TrackingState::kLost;
   result.state = state_;
@@ -116,7 +121,8 @@ bool Tracker::Initialize(Frame& frame) {
   frame.T_camera_world = Eigen::Isometry3d::Identity();  // the first camera defines the world
   KeyFrame* kf = map_->AddKeyFrame(frame);
   for (size_t i = 0; i < kf->frame.size(); ++i) {
-    if (!kf->frame.HasDepth(static_cast<int>(i))) continue;
+    if (!kf->frame.HasDepth(static_cast<int>(i)) || !kf->frame.IsStatic(static_cast<int>(i)))
+      continue;
     MapPoint* p = map_->AddMapPoint(kf->frame.UnprojectWorld(static_cast<int>(i)), kf);
     map_->AddObservation(p, kf, static_cast<int>(i));
     p->UpdateFromObservations();
@@ -132,7 +138,7 @@ void Tracker::MakeTemporaryPoints() {
   Frame& last = *last_frame_;
   std::vector<std::pair<float, int>> by_depth;
   for (size_t i = 0; i < last.size(); ++i) {
-    if (last.HasDepth(static_cast<int>(i)))
+    if (last.HasDepth(static_cast<int>(i)) && last.IsStatic(static_cast<int>(i)))
       by_depth.emplace_back(last.depth[i], static_cast<int>(i));
   }
   std::sort(by_depth.begin(), by_depth.end());
@@ -265,7 +271,8 @@ bool Tracker::NeedKeyFrame(const Frame& frame, int inliers, bool mapping_idle) c
   const int reference_matches = reference_->TrackedPoints(min_observations);
   int tracked_close = 0, untracked_close = 0;
   for (size_t i = 0; i < frame.size(); ++i) {
-    if (!frame.HasDepth(static_cast<int>(i)) || frame.depth[i] > frame.geometry->close_depth)
+    if (!frame.HasDepth(static_cast<int>(i)) || !frame.IsStatic(static_cast<int>(i)) ||
+        frame.depth[i] > frame.geometry->close_depth)
       continue;
     if (frame.map_points[i] != nullptr && !frame.outlier[i]) {
       ++tracked_close;
@@ -289,7 +296,7 @@ KeyFrame* Tracker::CreateKeyFrame(Frame& frame) {
   // New close points from depth, nearest first; at least min_close_points of them.
   std::vector<std::pair<float, int>> by_depth;
   for (size_t i = 0; i < kf->frame.size(); ++i) {
-    if (kf->frame.HasDepth(static_cast<int>(i)))
+    if (kf->frame.HasDepth(static_cast<int>(i)) && kf->frame.IsStatic(static_cast<int>(i)))
       by_depth.emplace_back(kf->frame.depth[i], static_cast<int>(i));
   }
   std::sort(by_depth.begin(), by_depth.end());

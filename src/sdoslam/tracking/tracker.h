@@ -32,6 +32,11 @@ struct TrackingResult {
   int inliers = 0;  // matched map points after it
   bool keyframe = false;
   Eigen::Isometry3d T_camera_world = Eigen::Isometry3d::Identity();
+  // Every feature's detected position, its front-end label (0 = static) and whether it ended
+  // matched to a map point as an inlier: for overlays and feature-level evaluation.
+  std::vector<cv::Point2f> feature_points;
+  std::vector<uint8_t> feature_labels;
+  std::vector<uint8_t> feature_tracked;
 };
 
 // Frame-to-map tracking of ORB-SLAM2 (RGB-D): constant-velocity prediction and projection

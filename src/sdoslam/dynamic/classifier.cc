@@ -1,0 +1,263 @@
+#include "sdoslam/dynamic/classifier.h"
+
+#include <algorithm>
+#include <opencv2/imgproc.hpp>
+
+#include "sdoslam/core/error.h"
+
+namespace sdoslam {
+namespace {
+
+struct SegmentStats {
+  int area = 0;
+  int outline = 0;            // outline pixels
+  int outline_on_boundary = 0;
+  int depth_pairs = 0;        // neighbour pairs across the outline with depth on both sides
+  int in_front = 0;           // ... where this segment is the nearer side
+  float median_depth = 0;
+  std::vector<float> depths;
+};
+
+float Median(std::vector<float>* v) {
+  if (v->empty()) return 0;
+  auto mid = v->begin() + static_cast<std::ptrdiff_t>(v->size() / 2);
+  std::nth_element(v->begin(), mid, v->end());
+  return *mid;
+}
+
+}  // namespace
+
+void SdoClassifierOptions::Check() const {
+  if (work_width < 16) throw Error("classifier.work_width must be at least 16");
+  auto fraction = [](double v, const char* name) {
+    if (v < 0 || v > 1) throw Error(std::string("classifier.") + name + " must be in [0, 1]");
+  };
+  fraction(min_box_iou, "min_box_iou");
+  fraction(min_inside_box, "min_inside_box");
+  fraction(min_outline_on_boundary, "min_outline_on_boundary");
+  fraction(min_in_front, "min_in_front");
+  fraction(max_segment_area, "max_segment_area");
+  fraction(persistence_overlap, "persistence_overlap");
+  if (same_depth_tolerance < 0) throw Error("classifier.same_depth_tolerance must be ≥ 0");
+  if (in_front_ratio < 1) throw Error("classifier.in_front_ratio must be ≥ 1");
+  if (boundary_band_px < 0 || margin_px < 0 || persistence_frames < 0 || persistence_frames > 250)
+    throw Error("classifier: boundary_band_px, margin_px ≥ 0; persistence_frames in [0, 250]");
+}
+
+SdoClassifier::SdoClassifier(const SdoClassifierOptions& options) : options_(options) {
+  options_.Check();
+}
+
+SdoResult SdoClassifier::Classify(const Segmentation& segments,
+                                  const std::vector<Detection>& detections,
+                                  const cv::Mat& boundary_mask, const cv::Mat& flow,
+                                  const cv::Mat& depth, cv::Size image_size) {
+  const double scale = static_cast<double>(options_.work_width) / image_size.width;
+  const cv::Size work(options_.work_width,
+                      std::max(1, static_cast<int>(std::lround(image_size.height * scale))));
+  SdoResult result;
+  result.detections = detections;
+  result.segments.count = segments.count;
+  if (segments.labels.size() == work) {
+    result.segments.labels = segments.labels;
+  } else {
+    cv::resize(segments.labels, result.segments.labels, work, 0, 0, cv::INTER_NEAREST);
+  }
+  const cv::Mat& seg = result.segments.labels;
+  const int n = segments.count;
+  cv::Mat depth_work(work, CV_32F, cv::Scalar(0));
+  if (!depth.empty()) cv::resize(depth, depth_work, work, 0, 0, cv::INTER_NEAREST);
+
+  // Per-segment area, outline, depth order along the outline.
+  std::vector<SegmentStats> stats(static_cast<size_t>(n));
+  cv::Mat near_boundary(work, CV_8U, cv::Scalar(0));
+  if (!boundary_mask.empty()) {
+    cv::resize(boundary_mask, result.boundary_mask, work, 0, 0, cv::INTER_AREA);
+    cv::threshold(result.boundary_mask, result.boundary_mask, 0, 255, cv::THRESH_BINARY);
+    const int r = options_.boundary_band_px;
+    cv::dilate(result.boundary_mask, near_boundary,
+               cv::getStructuringElement(cv::MORPH_RECT, {2 * r + 1, 2 * r + 1}));
+  } else {
+    result.boundary_mask = cv::Mat(work, CV_8U, cv::Scalar(0));
+  }
+  const double ratio = options_.in_front_ratio;
+  for (int y = 0; y < work.height; ++y) {
+    const int* row = seg.ptr<int>(y);
+    const float* d = depth_work.ptr<float>(y);
+    for (int x = 0; x < work.width; ++x) {
+      const int s = row[x];
+      if (s < 0) continue;
+      SegmentStats& st = stats[static_cast<size_t>(s)];
+      ++st.area;
+      if (d[x] > 0) st.depths.push_back(d[x]);
+      bool outline = false;
+      // Right and down neighbours: each pair is visited once and counts for both sides.
+      const int nx[2] = {x + 1, x}, ny[2] = {y, y + 1};
+      for (int k = 0; k < 2; ++k) {
+        if (nx[k] >= work.width || ny[k] >= work.height) continue;
+        const int t = seg.at<int>(ny[k], nx[k]);
+        if (t == s) continue;
+        outline = true;
+        const float dt = depth_work.at<float>(ny[k], nx[k]);
+        if (t >= 0 && d[x] > 0 && dt > 0) {
+          SegmentStats& other = stats[static_cast<size_t>(t)];
+          ++st.depth_pairs;
+          ++other.depth_pairs;
+          if (dt > d[x] * ratio) ++st.in_front;
+          if (d[x] > dt * ratio) ++other.in_front;
+        }
+      }
+      // Left and up neighbours only mark this pixel as outline.
+      if (!outline && ((x > 0 && row[x - 1] != s) || (y > 0 && seg.at<int>(y - 1, x) != s)))
+        outline = true;
+      if (outline) {
+        ++st.outline;
+        st.outline_on_boundary += near_boundary.at<uint8_t>(y, x) != 0;
+      }
+    }
+  }
+  for (SegmentStats& st : stats) st.median_depth = Median(&st.depths);
+
+  result.segment_labels.assign(static_cast<size_t>(n), kStatic);
+  cv::Mat known(work, CV_8U, cv::Scalar(0));
+
+  // Known movable classes.
+  const auto& movable = options_.movable_classes;
+  for (const Detection& det : detections) {
+    if (std::find(movable.begin(), movable.end(), det.class_name) == movable.end()) continue;
+    const cv::Rect box =
+        cv::Rect(cv::Point(static_cast<int>(std::floor(det.box.x * scale)),
+                           static_cast<int>(std::floor(det.box.y * scale))),
+                 cv::Point(static_cast<int>(std::ceil(det.box.br().x * scale)),
+                           static_cast<int>(std::ceil(det.box.br().y * scale)))) &
+        cv::Rect(0, 0, work.width, work.height);
+    if (box.area() <= 0) continue;
+    std::vector<int> inside(static_cast<size_t>(n), 0);
+    for (int y = box.y; y < box.br().y; ++y) {
+      const int* row = seg.ptr<int>(y);
+      for (int x = box.x; x < box.br().x; ++x) {
+        if (row[x] >= 0) ++inside[static_cast<size_t>(row[x])];
+      }
+    }
+    int best = -1;
+    double best_iou = options_.min_box_iou;
+    for (int s = 0; s < n; ++s) {
+      const double in = inside[static_cast<size_t>(s)];
+      const double iou = in / (stats[static_cast<size_t>(s)].area + box.area() - in);
+      if (in > 0 && iou >= best_iou) {
+        best_iou = iou;
+        best = s;
+      }
+    }
+    cv::Mat member(work, CV_8U, cv::Scalar(0));
+    if (best < 0) {
+      member(box).setTo(255);
+    } else {
+      const float best_depth = stats[static_cast<size_t>(best)].median_depth;
+      std::vector<uint8_t> joins(static_cast<size_t>(n), 0);
+      for (int s = 0; s < n; ++s) {
+        const SegmentStats& st = stats[static_cast<size_t>(s)];
+        const bool mostly_inside = inside[static_cast<size_t>(s)] >= options_.min_inside_box * st.area;
+        const bool same_depth =
+            best_depth <= 0 || st.median_depth <= 0 ||
+            std::abs(st.median_depth - best_depth) <= options_.same_depth_tolerance * best_depth;
+        joins[static_cast<size_t>(s)] = s == best || (mostly_inside && same_depth && st.area > 0);
+        if (joins[static_cast<size_t>(s)]) result.segment_labels[static_cast<size_t>(s)] = kKnownMovable;
+      }
+      for (int y = box.y; y < box.br().y; ++y) {
+        const int* row = seg.ptr<int>(y);
+        uint8_t* m = member.ptr<uint8_t>(y);
+        for (int x = box.x; x < box.br().x; ++x) {
+          if (row[x] >= 0 && joins[static_cast<size_t>(row[x])]) m[x] = 255;
+        }
+      }
+    }
+    known |= member;
+  }
+
+  // Unknown objects selected by motion boundaries.
+  const int max_area = static_cast<int>(options_.max_segment_area * work.area());
+  std::vector<uint8_t> moving(static_cast<size_t>(n), 0);
+  for (int s = 0; s < n; ++s) {
+    const SegmentStats& st = stats[static_cast<size_t>(s)];
+    if (st.outline == 0 || st.area > max_area) continue;
+    const bool on_boundary = st.outline_on_boundary >= options_.min_outline_on_boundary * st.outline;
+    const bool in_front = st.depth_pairs == 0 ||
+                          st.in_front >= options_.min_in_front * st.depth_pairs;
+    moving[static_cast<size_t>(s)] = on_boundary && in_front;
+  }
+  // Persistence: carry the memory to this frame along the flow (backward lookup, first order),
+  // then segments covered by it stay dynamic.
+  cv::Mat memory(work, CV_8U, cv::Scalar(0));
+  if (!memory_.empty() && memory_.size() == work) {
+    if (!flow.empty()) {
+      cv::Mat flow_work;
+      cv::resize(flow, flow_work, work, 0, 0, cv::INTER_LINEAR);
+      flow_work *= static_cast<double>(work.width) / flow.cols;
+      cv::Mat map(work, CV_32FC2);
+      for (int y = 0; y < work.height; ++y) {
+        for (int x = 0; x < work.width; ++x) {
+          const cv::Vec2f f = flow_work.at<cv::Vec2f>(y, x);
+          map.at<cv::Vec2f>(y, x) = cv::Vec2f(static_cast<float>(x) - f[0], static_cast<float>(y) - f[1]);
+        }
+      }
+      cv::remap(memory_, memory, map, cv::noArray(), cv::INTER_NEAREST, cv::BORDER_CONSTANT);
+    } else {
+      memory = memory_.clone();
+    }
+    std::vector<int> remembered(static_cast<size_t>(n), 0);
+    for (int y = 0; y < work.height; ++y) {
+      const int* row = seg.ptr<int>(y);
+      const uint8_t* m = memory.ptr<uint8_t>(y);
+      for (int x = 0; x < work.width; ++x) {
+        if (row[x] >= 0 && m[x] > 0) ++remembered[static_cast<size_t>(row[x])];
+      }
+    }
+    for (int s = 0; s < n; ++s) {
+      const SegmentStats& st = stats[static_cast<size_t>(s)];
+      if (st.area > 0 && st.area <= max_area &&
+          remembered[static_cast<size_t>(s)] >= options_.persistence_overlap * st.area)
+        moving[static_cast<size_t>(s)] |= 2;  // remembered, not refreshed
+    }
+    cv::subtract(memory, cv::Scalar(1), memory);  // saturates at 0
+  }
+  for (int s = 0; s < n; ++s) {
+    if (moving[static_cast<size_t>(s)] && result.segment_labels[static_cast<size_t>(s)] == kStatic)
+      result.segment_labels[static_cast<size_t>(s)] = kMovingUnknown;
+  }
+
+  // The label image; freshly selected segments refresh the memory.
+  result.work_labels.create(work, CV_8U);
+  const uint8_t refresh = static_cast<uint8_t>(options_.persistence_frames);
+  for (int y = 0; y < work.height; ++y) {
+    const int* row = seg.ptr<int>(y);
+    const uint8_t* k = known.ptr<uint8_t>(y);
+    uint8_t* out = result.work_labels.ptr<uint8_t>(y);
+    uint8_t* m = memory.ptr<uint8_t>(y);
+    for (int x = 0; x < work.width; ++x) {
+      const int s = row[x];
+      if (k[x]) {
+        out[x] = kKnownMovable;
+      } else if (s >= 0 && result.segment_labels[static_cast<size_t>(s)] == kMovingUnknown) {
+        out[x] = kMovingUnknown;
+      } else {
+        out[x] = kStatic;
+      }
+      if (s >= 0 && (moving[static_cast<size_t>(s)] & 1)) m[x] = std::max(m[x], refresh);
+    }
+  }
+  memory_ = memory;
+  if (options_.margin_px > 0) {
+    // Grow dynamic regions (max filter: known-movable wins over moving-unknown only by value
+    // order, which is fine: both are dynamic).
+    const int r = options_.margin_px;
+    cv::Mat grown;
+    cv::dilate(result.work_labels, grown,
+               cv::getStructuringElement(cv::MORPH_RECT, {2 * r + 1, 2 * r + 1}));
+    result.work_labels = grown;
+  }
+  cv::resize(result.work_labels, result.labels, image_size, 0, 0, cv::INTER_NEAREST);
+  return result;
+}
+
+}  // namespace sdoslam

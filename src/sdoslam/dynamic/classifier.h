@@ -1,0 +1,80 @@
+#pragma once
+
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "sdoslam/dynamic/detector.h"
+#include "sdoslam/dynamic/frame_input.h"
+#include "sdoslam/dynamic/segmenter.h"
+
+namespace sdoslam {
+
+// The SDO classification (paper §III-C): which segments are dynamic, from known movable classes
+// and from motion boundaries. Works at a reduced resolution; the label image is then scaled to
+// the frame.
+struct SdoClassifierOptions {
+  // Known classes that can move; their segments are dynamic whether moving or not (paper).
+  std::vector<std::string> movable_classes = {
+      "person", "bicycle", "car",   "motorcycle", "bus",   "train", "truck",
+      "boat",   "bird",    "cat",   "dog",        "horse", "sheep", "cow",
+      "elephant", "bear",  "zebra", "giraffe"};
+  int work_width = 160;  // px; classification resolution (aspect kept)
+
+  // Known objects. The box's class goes to the segment of highest IoU with it (paper); other
+  // segments mostly inside the box at the same depth join it, since a segmenter may split a
+  // person into parts. Labels are clipped to the box. When no segment reaches min_box_iou, the
+  // box itself is labelled.
+  double min_box_iou = 0.1;
+  double min_inside_box = 0.6;         // fraction of a segment's area inside the box
+  double same_depth_tolerance = 0.15;  // relative difference of median depths
+
+  // Unknown objects. A segment is selected by motion when at least `min_outline_on_boundary`
+  // of its outline lies within `boundary_band_px` (work pixels) of a motion boundary, it is in
+  // front of its neighbours along at least `min_in_front` of its outline (an occluding outline
+  // belongs to the nearer surface; the wall around a moving person is not moving), and it covers
+  // at most `max_segment_area` of the image (never the whole background).
+  int boundary_band_px = 1;
+  double min_outline_on_boundary = 0.3;
+  double min_in_front = 0.5;
+  double in_front_ratio = 1.05;  // depth behind / depth in front beyond which a side is "in front"
+  double max_segment_area = 0.5;
+
+  // A segment selected by motion stays dynamic for this many frames while segments keep
+  // overlapping its flow-warped region by at least `persistence_overlap`: objects that pause
+  // (a pendulum at its turning point) or move along their own outline stay caught.
+  int persistence_frames = 5;
+  double persistence_overlap = 0.5;
+
+  int margin_px = 1;  // work pixels by which dynamic regions grow (features on silhouettes)
+  void Check() const;
+};
+
+struct SdoResult {
+  cv::Mat labels;       // CV_8U at image size: DynamicLabel per pixel
+  cv::Mat work_labels;  // the same at work resolution
+  Segmentation segments;                 // at work resolution
+  std::vector<uint8_t> segment_labels;   // DynamicLabel per segment
+  std::vector<Detection> detections;     // image pixels
+  cv::Mat boundary_mask;                 // CV_8U at work resolution, 255 = motion boundary
+};
+
+class SdoClassifier {
+ public:
+  explicit SdoClassifier(const SdoClassifierOptions& options = {});
+
+  // segments: any resolution of the image's aspect. boundary_mask: CV_8U (any resolution, empty
+  // on the first frame); flow: CV_32FC2 of the same pass (or empty), used to carry the memory of
+  // moving regions to this frame; depth: CV_32F metres at image size (or empty).
+  SdoResult Classify(const Segmentation& segments, const std::vector<Detection>& detections,
+                     const cv::Mat& boundary_mask, const cv::Mat& flow, const cv::Mat& depth,
+                     cv::Size image_size);
+
+  void Reset() { memory_.release(); }
+
+ private:
+  SdoClassifierOptions options_;
+  cv::Mat memory_;  // CV_8U at work resolution: frames left for which a moved region persists
+};
+
+}  // namespace sdoslam

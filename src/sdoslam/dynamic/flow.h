@@ -1,0 +1,46 @@
+#pragma once
+
+#include <filesystem>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+namespace sdoslam {
+
+// Dense optical flow from the previous to the current image.
+class FlowEstimator {
+ public:
+  virtual ~FlowEstimator() = default;
+  // CV_32FC2 at (work) resolution: displacement in pixels of that resolution. The result may be
+  // smaller than the images; its aspect is the images'.
+  virtual cv::Mat Compute(const cv::Mat& previous_bgr, const cv::Mat& current_bgr) = 0;
+};
+
+struct FlowOptions {
+  int work_width = 320;  // flow runs at this width (aspect kept)
+  // DIS preset: 0 ultrafast, 1 fast, 2 medium (OpenCV's DISOpticalFlow presets).
+  int dis_preset = 1;
+  // Flow from frame k − frame_gap to frame k. Slow objects move too little between two frames
+  // at 30 Hz for their boundary to stand out of DIS's smoothing; a longer baseline scales their
+  // flow difference (the camera-rotation term still cancels between neighbours).
+  int frame_gap = 3;
+  // onnx backend: names of the two image inputs (previous, current). Empty: the model has one
+  // input 1×6×H×W, previous RGB then current RGB. (OpenCV dnn cannot list a model's input
+  // names, so a two-input model needs them spelled out.)
+  std::vector<std::string> onnx_input_names;
+  void Check() const;
+};
+
+// OpenCV's DIS optical flow (Kroeger et al. 2016): fast on a CPU, the default.
+std::unique_ptr<FlowEstimator> MakeDisFlow(const FlowOptions& options);
+// OpenCV's Farnebäck polynomial-expansion flow: slower, smoother.
+std::unique_ptr<FlowEstimator> MakeFarnebackFlow(const FlowOptions& options);
+// A learned-flow network exported to ONNX (e.g. PWC-Net, RAFT): the two images as RGB scaled to
+// [0, 1], either stacked in one 1×6×H×W input or as two 1×3×H×W inputs named in
+// `onnx_input_names`; one output 1×2×H×W of flow in pixels of the input size. H×W is the model's declared input size, or the work size when
+// dynamic. Throws Error naming the file when it is missing or its inputs/outputs do not fit.
+std::unique_ptr<FlowEstimator> MakeOnnxFlow(const std::filesystem::path& model,
+                                            const FlowOptions& options);
+
+}  // namespace sdoslam

@@ -1,0 +1,82 @@
+#pragma once
+
+#include <deque>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "sdoslam/core/config.h"
+#include "sdoslam/dynamic/classifier.h"
+#include "sdoslam/dynamic/detector.h"
+#include "sdoslam/dynamic/flow.h"
+#include "sdoslam/dynamic/motion_boundaries.h"
+#include "sdoslam/dynamic/segmenter.h"
+#include "sdoslam/dynamic/yoloseg.h"
+
+namespace YAML {
+class Emitter;
+}
+
+namespace sdoslam {
+
+// Backends and settings of the dynamic-object front end (config section `dynamic:`).
+struct FrontEndOptions {
+  std::string segmenter = "rgbd";  // rgbd | onnx-yoloseg | file
+  std::filesystem::path segmenter_model;  // onnx-yoloseg: Fast-SAM / YOLOv8-seg export
+  std::filesystem::path masks_folder;     // file: instance PNGs (relative: to the dataset)
+  RgbdSegmenterOptions rgbd;
+  YoloSegOptions yoloseg;
+
+  std::string detector = "hog";  // nanodet | fastestdet | yolov8 | hog | file | none
+  std::filesystem::path detector_model;   // ONNX backends
+  std::filesystem::path detections_file;  // file: JSON (relative: to the dataset)
+  // Run the detector on every n-th frame; in between, boxes follow the mean flow inside them.
+  int detect_every = 1;
+  DetectorOptions detection;
+  HogDetectorOptions hog;
+
+  std::string flow = "dis";  // dis | farneback | onnx
+  std::filesystem::path flow_model;
+  FlowOptions flow_options;
+
+  MotionBoundaryOptions boundaries;
+  SdoClassifierOptions classifier;
+  void Check() const;
+};
+
+// Reads the optional `dynamic:` section; unknown keys and backend names are errors naming the
+// file and line.
+FrontEndOptions ReadFrontEndOptions(ConfigMap& root);
+void WriteFrontEndOptions(const FrontEndOptions& options, YAML::Emitter* out);
+
+struct FrontEndTiming {
+  double segment_ms = 0, detect_ms = 0, flow_ms = 0, classify_ms = 0;
+  double total() const { return segment_ms + detect_ms + flow_ms + classify_ms; }
+};
+
+// Segmenter + detector + optical flow + motion boundaries + classification, frame after frame.
+class FrontEnd {
+ public:
+  // Builds the backends. Relative file-backend paths resolve against `dataset_folder`. Throws
+  // Error for unknown backends, missing or unreadable files, models whose outputs do not match
+  // their backend, and (file backends) masks or detections that do not fit `rgb_paths`.
+  FrontEnd(const FrontEndOptions& options, const std::filesystem::path& dataset_folder,
+           cv::Size image_size, const std::vector<std::filesystem::path>& rgb_paths = {});
+  ~FrontEnd();
+
+  SdoResult Process(const FrontEndFrame& frame, FrontEndTiming* timing = nullptr);
+
+ private:
+  FrontEndOptions options_;
+  cv::Size image_size_;
+  std::unique_ptr<Segmenter> segmenter_;
+  std::unique_ptr<Detector> detector_;
+  std::unique_ptr<FlowEstimator> flow_;
+  SdoClassifier classifier_;
+  std::deque<cv::Mat> previous_bgr_;  // the last flow_options.frame_gap images, oldest first
+  std::vector<Detection> last_detections_;
+  size_t frames_ = 0;
+};
+
+}  // namespace sdoslam

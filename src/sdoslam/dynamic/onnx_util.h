@@ -1,0 +1,27 @@
+#pragma once
+
+#include <filesystem>
+#include <opencv2/dnn.hpp>
+#include <string>
+#include <vector>
+
+namespace sdoslam {
+
+// Loads an ONNX model with OpenCV dnn (CPU). Throws Error naming the file when it is missing or
+// does not parse.
+cv::dnn::Net LoadOnnxModel(const std::filesystem::path& path, const std::string& backend);
+
+// Runs `net` on `blob` and returns every unconnected output.
+std::vector<cv::Mat> ForwardAll(cv::dnn::Net& net, const cv::Mat& blob);
+
+// "1x84x8400" for messages.
+std::string ShapeString(const cv::Mat& m);
+
+// The model's declared input size (H, W) when fixed; `fallback` when dynamic or undeclared.
+cv::Size ModelInputSize(const cv::dnn::Net& net, cv::Size fallback);
+
+// Letterbox: resize keeping the aspect into `size`, pad with grey (114) at the bottom/right.
+// Returns the scale applied.
+double Letterbox(const cv::Mat& bgr, cv::Size size, cv::Mat* out);
+
+}  // namespace sdoslam

@@ -1,0 +1,156 @@
+#include "sdoslam/eval/mask_metrics.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "sdoslam/core/error.h"
+
+namespace sdoslam {
+
+double MaskCounts::Precision() const {
+  const uint64_t p = true_positive + false_positive;
+  return p == 0 ? 1.0 : static_cast<double>(true_positive) / static_cast<double>(p);
+}
+double MaskCounts::Recall() const {
+  const uint64_t t = true_positive + false_negative;
+  return t == 0 ? 1.0 : static_cast<double>(true_positive) / static_cast<double>(t);
+}
+double MaskCounts::Iou() const {
+  const uint64_t u = true_positive + false_positive + false_negative;
+  return u == 0 ? 1.0 : static_cast<double>(true_positive) / static_cast<double>(u);
+}
+MaskCounts& MaskCounts::operator+=(const MaskCounts& o) {
+  true_positive += o.true_positive;
+  false_positive += o.false_positive;
+  false_negative += o.false_negative;
+  true_negative += o.true_negative;
+  return *this;
+}
+
+MaskEvaluator::MaskEvaluator(const std::filesystem::path& sequence) : sequence_(sequence) {
+  for (const char* folder : {"dynamic", "instance"}) {
+    if (!std::filesystem::is_directory(sequence / folder))
+      throw Error((sequence / folder).string() +
+                  ": no ground-truth masks (mask evaluation needs a synthetic sequence)");
+  }
+  const auto objects = sequence / "objects.json";
+  std::ifstream in(objects);
+  if (!in) throw Error(objects.string() + ": cannot open");
+  try {
+    const nlohmann::json j = nlohmann::json::parse(in);
+    for (const auto& o : j.at("objects")) {
+      const bool known = o.value("known", false) && o.at("class").is_string();
+      class_of_instance_[o.at("id").get<int>()] = known ? o.at("class").get<std::string>() : "unknown";
+    }
+  } catch (const nlohmann::json::exception& e) {
+    throw Error(objects.string() + ": " + e.what());
+  }
+}
+
+void MaskEvaluator::AddFrame(const std::filesystem::path& rgb_path, const cv::Mat& predicted,
+                             const std::vector<cv::Point2f>& features,
+                             const std::vector<uint8_t>& feature_labels) {
+  const std::string name = rgb_path.filename().string();
+  const auto dynamic_path = sequence_ / "dynamic" / name, instance_path = sequence_ / "instance" / name;
+  const cv::Mat truth = cv::imread(dynamic_path.string(), cv::IMREAD_UNCHANGED);
+  const cv::Mat instance = cv::imread(instance_path.string(), cv::IMREAD_UNCHANGED);
+  if (truth.empty()) throw Error(dynamic_path.string() + ": cannot read the ground-truth mask");
+  if (instance.empty()) throw Error(instance_path.string() + ": cannot read the instance mask");
+  if (truth.size() != predicted.size() || instance.size() != predicted.size())
+    throw Error(dynamic_path.string() + ": ground truth and prediction differ in size");
+  cv::Mat instance32;
+  instance.convertTo(instance32, CV_32S);
+
+  MaskCounts frame;
+  for (int y = 0; y < truth.rows; ++y) {
+    const uint8_t* t = truth.ptr<uint8_t>(y);
+    const uint8_t* p = predicted.ptr<uint8_t>(y);
+    for (int x = 0; x < truth.cols; ++x) {
+      const bool is = t[x] != 0, said = p[x] != 0;
+      frame.true_positive += is && said;
+      frame.false_positive += !is && said;
+      frame.false_negative += is && !said;
+      frame.true_negative += !is && !said;
+    }
+  }
+  result_.pixels += frame;
+
+  // Per class: moving pixels of the class, and mistakes inside its objects' grown boxes.
+  std::map<std::string, cv::Mat> class_truth;
+  for (int y = 0; y < truth.rows; ++y) {
+    const uint8_t* t = truth.ptr<uint8_t>(y);
+    const int* id = instance32.ptr<int>(y);
+    for (int x = 0; x < truth.cols; ++x) {
+      if (!t[x]) continue;
+      const auto it = class_of_instance_.find(id[x]);
+      const std::string cls = it == class_of_instance_.end() ? "unknown" : it->second;
+      cv::Mat& m = class_truth[cls];
+      if (m.empty()) m = cv::Mat(truth.size(), CV_8U, cv::Scalar(0));
+      m.at<uint8_t>(y, x) = 255;
+    }
+  }
+  for (const auto& [cls, mask] : class_truth) {
+    cv::Mat region(truth.size(), CV_8U, cv::Scalar(0));
+    std::vector<std::vector<cv::Point>> contours;
+    cv::findContours(mask.clone(), contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
+    for (const auto& c : contours) {
+      cv::Rect r = cv::boundingRect(c);
+      const int gx = r.width / 10, gy = r.height / 10;
+      r = cv::Rect(r.x - gx, r.y - gy, r.width + 2 * gx, r.height + 2 * gy) &
+          cv::Rect(0, 0, truth.cols, truth.rows);
+      region(r).setTo(255);
+    }
+    MaskCounts c;
+    for (int y = 0; y < truth.rows; ++y) {
+      const uint8_t* m = mask.ptr<uint8_t>(y);
+      const uint8_t* r = region.ptr<uint8_t>(y);
+      const uint8_t* t = truth.ptr<uint8_t>(y);
+      const uint8_t* p = predicted.ptr<uint8_t>(y);
+      for (int x = 0; x < truth.cols; ++x) {
+        if (m[x]) {
+          (p[x] ? c.true_positive : c.false_negative) += 1;
+        } else if (r[x] && !t[x]) {
+          (p[x] ? c.false_positive : c.true_negative) += 1;
+        }
+      }
+    }
+    result_.per_class[cls] += c;
+  }
+
+  if (features.size() != feature_labels.size())
+    throw Error("mask evaluation: feature positions and labels differ in number");
+  for (size_t i = 0; i < features.size(); ++i) {
+    const int x = std::clamp(static_cast<int>(std::lround(features[i].x)), 0, truth.cols - 1);
+    const int y = std::clamp(static_cast<int>(std::lround(features[i].y)), 0, truth.rows - 1);
+    const bool is = truth.at<uint8_t>(y, x) != 0, said = feature_labels[i] != 0;
+    result_.features.true_positive += is && said;
+    result_.features.false_positive += !is && said;
+    result_.features.false_negative += is && !said;
+    result_.features.true_negative += !is && !said;
+  }
+  ++result_.frames;
+}
+
+std::string FormatMaskEvaluation(const MaskEvaluation& e, const std::string& label) {
+  std::string s = fmt::format("{}: {} frames\n", label, e.frames);
+  s += fmt::format("  pixels:   precision {:.3f}  recall {:.3f}  IoU {:.3f}\n", e.pixels.Precision(),
+                   e.pixels.Recall(), e.pixels.Iou());
+  s += fmt::format("  features: precision {:.3f}  recall {:.3f}  ({} dynamic of {})\n",
+                   e.features.Precision(), e.features.Recall(),
+                   e.features.true_positive + e.features.false_negative,
+                   e.features.true_positive + e.features.false_negative +
+                       e.features.false_positive + e.features.true_negative);
+  for (const auto& [cls, c] : e.per_class) {
+    s += fmt::format("  {:<9} precision {:.3f}  recall {:.3f}  IoU {:.3f}\n", cls + ":",
+                     c.Precision(), c.Recall(), c.Iou());
+  }
+  return s;
+}
+
+}  // namespace sdoslam
