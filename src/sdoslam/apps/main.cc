@@ -8,6 +8,7 @@
 #include "sdoslam/apps/bench_command.h"
 #include "sdoslam/apps/demo_command.h"
 #include "sdoslam/apps/eval_command.h"
+#include "sdoslam/apps/eval_masks_command.h"
 #include "sdoslam/apps/run_command.h"
 #include "sdoslam/apps/synth_command.h"
 #include "sdoslam/core/error.h"
@@ -25,6 +26,7 @@ int main(int argc, char** argv) {
   sdoslam::AddSynthCommand(app);
   sdoslam::AddRunCommand(app);
   sdoslam::AddBenchCommand(app);
+  sdoslam::AddEvalMasksCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -31,8 +31,8 @@ class Segmenter {
 struct RgbdSegmenterOptions {
   int work_width = 160;          // px; segmentation runs at this width (aspect kept)
   double sigma = 0.5;            // Gaussian pre-smoothing of the graph segmentation
-  double k = 600;                // merge threshold: larger = larger segments
-  int min_size = 80;             // px at work resolution; smaller segments are merged
+  double k = 300;                // merge threshold: larger = larger segments
+  int min_size = 50;             // px at work resolution; smaller segments are merged
   double colour_weight = 0.5;    // per Lab unit
   double depth_weight = 200.0;   // per unit of log(depth): 0.1 ≈ a 10 % step
   void Check() const;

@@ -1,0 +1,177 @@
+#include "sdoslam/dynamic/classifier.h"
+
+#include <gtest/gtest.h>
+
+#include <opencv2/imgproc.hpp>
+
+#include "sdoslam/core/error.h"
+
+namespace sdoslam {
+namespace {
+
+// A 160×120 scene: background wall (segment 0, 3 m), object A (segment 1, 1 m) and object B
+// (segment 2, 1.5 m). Work resolution = image resolution, no margin, to check exact pixels.
+struct Scene {
+  Segmentation segments;
+  cv::Mat depth;
+  cv::Rect a{20, 30, 30, 60}, b{100, 40, 36, 36};
+  Scene() {
+    segments.labels = cv::Mat(120, 160, CV_32S, cv::Scalar(0));
+    segments.labels(a).setTo(1);
+    segments.labels(b).setTo(2);
+    segments.count = 3;
+    depth = cv::Mat(120, 160, CV_32F, cv::Scalar(3.0f));
+    depth(a).setTo(1.0f);
+    depth(b).setTo(1.5f);
+  }
+  cv::Mat OutlineOf(const cv::Rect& r) const {
+    cv::Mat m(120, 160, CV_8U, cv::Scalar(0));
+    cv::rectangle(m, r, cv::Scalar(255), 1);
+    return m;
+  }
+};
+
+SdoClassifierOptions ExactOptions() {
+  SdoClassifierOptions o;
+  o.work_width = 160;
+  o.margin_px = 0;
+  return o;
+}
+
+int Count(const cv::Mat& labels, DynamicLabel l) { return cv::countNonZero(labels == l); }
+
+TEST(SdoClassifier, MovableKnownClassMarksItsSegmentAndOtherClassesDoNot) {
+  Scene s;
+  SdoClassifier classifier(ExactOptions());
+  const std::vector<Detection> detections = {
+      {0, "person", 0.9f, cv::Rect2f(18, 28, 34, 64)},   // around A
+      {56, "chair", 0.9f, cv::Rect2f(98, 38, 40, 40)}};  // around B: not movable
+  const SdoResult r = classifier.Classify(s.segments, detections, cv::Mat(), cv::Mat(), s.depth,
+                                          {160, 120});
+  EXPECT_EQ(r.segment_labels, (std::vector<uint8_t>{kStatic, kKnownMovable, kStatic}));
+  EXPECT_EQ(Count(r.labels, kKnownMovable), s.a.area());
+  EXPECT_EQ(cv::countNonZero(r.labels(s.a) == kKnownMovable), s.a.area());
+  EXPECT_EQ(Count(r.labels, kMovingUnknown), 0);
+}
+
+TEST(SdoClassifier, PersonSplitIntoPartsIsWholeButTheWallInsideTheBoxIsNot) {
+  Scene s;
+  // A split in a head (segment 3) and a body (segment 1); a wall patch (segment 4, 3 m) inside
+  // the box beside A.
+  s.segments.labels(cv::Rect(20, 30, 30, 15)).setTo(3);
+  s.segments.labels(cv::Rect(52, 30, 6, 20)).setTo(4);
+  s.segments.count = 5;
+  SdoClassifier classifier(ExactOptions());
+  const SdoResult r = classifier.Classify(
+      s.segments, {{0, "person", 0.9f, cv::Rect2f(18, 28, 42, 64)}}, cv::Mat(), cv::Mat(),
+      s.depth, {160, 120});
+  EXPECT_EQ(r.segment_labels[1], kKnownMovable);
+  EXPECT_EQ(r.segment_labels[3], kKnownMovable);
+  EXPECT_EQ(r.segment_labels[4], kStatic);
+  EXPECT_EQ(r.segment_labels[0], kStatic);
+}
+
+TEST(SdoClassifier, BoxWithoutAMatchingSegmentIsLabelledItself) {
+  Scene s;
+  s.segments.labels.setTo(-1);  // a segmenter that found nothing
+  SdoClassifier classifier(ExactOptions());
+  const SdoResult r = classifier.Classify(
+      s.segments, {{16, "dog", 0.8f, cv::Rect2f(60, 10, 20, 30)}}, cv::Mat(), cv::Mat(), s.depth,
+      {160, 120});
+  EXPECT_EQ(Count(r.labels, kKnownMovable), 20 * 30);
+}
+
+TEST(SdoClassifier, MotionBoundaryOnAnOutlineSelectsTheObjectNotTheWallBehindIt) {
+  Scene s;
+  SdoClassifier classifier(ExactOptions());
+  const SdoResult r = classifier.Classify(s.segments, {}, s.OutlineOf(s.b), cv::Mat(), s.depth,
+                                          {160, 120});
+  // The wall's outline (around the hole of B) is on the boundary too, but the wall is behind.
+  EXPECT_EQ(r.segment_labels, (std::vector<uint8_t>{kStatic, kStatic, kMovingUnknown}));
+  EXPECT_EQ(Count(r.labels, kMovingUnknown), s.b.area());
+}
+
+TEST(SdoClassifier, WithoutDepthOrderTheWallWouldBeTakenToo) {
+  // The same as above with the in-front rule off: shows the rule is what protects the wall.
+  Scene s;
+  SdoClassifierOptions o = ExactOptions();
+  o.min_in_front = 0.0;
+  o.max_segment_area = 1.0;
+  SdoClassifier classifier(o);
+  const SdoResult r = classifier.Classify(s.segments, {}, s.OutlineOf(s.b), cv::Mat(), s.depth,
+                                          {160, 120});
+  EXPECT_EQ(r.segment_labels[2], kMovingUnknown);
+  // The wall's outline rings A and B (image borders are not outline); B's ring is ~45 % of it.
+  EXPECT_EQ(r.segment_labels[0], kMovingUnknown);
+  EXPECT_EQ(r.segment_labels[1], kStatic);
+}
+
+TEST(SdoClassifier, SelectedObjectPersistsForTheConfiguredFramesThenLapses) {
+  Scene s;
+  SdoClassifierOptions o = ExactOptions();
+  o.persistence_frames = 3;
+  SdoClassifier classifier(o);
+  const cv::Mat zero_flow(120, 160, CV_32FC2, cv::Scalar(0, 0));
+  const cv::Mat no_boundary(120, 160, CV_8U, cv::Scalar(0));
+  ASSERT_EQ(classifier.Classify(s.segments, {}, s.OutlineOf(s.b), zero_flow, s.depth, {160, 120})
+                .segment_labels[2],
+            kMovingUnknown);
+  std::vector<uint8_t> seen;
+  for (int k = 0; k < 5; ++k) {
+    seen.push_back(
+        classifier.Classify(s.segments, {}, no_boundary, zero_flow, s.depth, {160, 120})
+            .segment_labels[2]);
+  }
+  // Memory 3 carried and decremented each frame: dynamic for 3 more frames, then static.
+  EXPECT_EQ(seen, (std::vector<uint8_t>{kMovingUnknown, kMovingUnknown, kMovingUnknown, kStatic,
+                                        kStatic}));
+}
+
+TEST(SdoClassifier, MemoryFollowsTheFlow) {
+  // B moved 40 px to the left since the last frame; the memory must follow it there.
+  Scene s;
+  SdoClassifier classifier(ExactOptions());
+  classifier.Classify(s.segments, {}, s.OutlineOf(s.b), cv::Mat(), s.depth, {160, 120});
+  Scene moved;
+  moved.segments.labels(moved.b).setTo(0);
+  moved.depth(moved.b).setTo(3.0f);
+  const cv::Rect b2 = moved.b - cv::Point(40, 0);
+  moved.segments.labels(b2).setTo(2);
+  moved.depth(b2).setTo(1.5f);
+  cv::Mat flow(120, 160, CV_32FC2, cv::Scalar(0, 0));
+  flow(b2).setTo(cv::Scalar(-40, 0));
+  const SdoResult r = classifier.Classify(moved.segments, {}, cv::Mat(120, 160, CV_8U, cv::Scalar(0)),
+                                          flow, moved.depth, {160, 120});
+  EXPECT_EQ(r.segment_labels[2], kMovingUnknown);
+  const SdoResult without_flow_shift = SdoClassifier(ExactOptions()).Classify(
+      moved.segments, {}, cv::Mat(), cv::Mat(), moved.depth, {160, 120});
+  EXPECT_EQ(without_flow_shift.segment_labels[2], kStatic);
+}
+
+TEST(SdoClassifier, LabelImageIsScaledToTheFrame) {
+  Scene s;
+  SdoClassifierOptions o = ExactOptions();
+  o.work_width = 80;
+  SdoClassifier classifier(o);
+  cv::Mat depth640;
+  cv::resize(s.depth, depth640, {640, 480}, 0, 0, cv::INTER_NEAREST);
+  const SdoResult r = classifier.Classify(
+      s.segments, {{0, "person", 0.9f, cv::Rect2f(18 * 4, 28 * 4, 34 * 4, 64 * 4)}}, cv::Mat(),
+      cv::Mat(), depth640, {640, 480});
+  ASSERT_EQ(r.labels.size(), cv::Size(640, 480));
+  EXPECT_EQ(r.work_labels.size(), cv::Size(80, 60));
+  EXPECT_EQ(r.labels.at<uint8_t>(60 * 4, 35 * 4), kKnownMovable);  // inside A
+  EXPECT_EQ(r.labels.at<uint8_t>(10, 10), kStatic);
+}
+
+TEST(SdoClassifierOptions, RejectsOutOfRangeValues) {
+  SdoClassifierOptions o;
+  o.min_outline_on_boundary = 1.5;
+  EXPECT_THROW(o.Check(), Error);
+  o = {};
+  o.persistence_frames = -1;
+  EXPECT_THROW(o.Check(), Error);
+}
+
+}  // namespace
+}  // namespace sdoslam

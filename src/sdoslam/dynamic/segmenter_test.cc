@@ -1,0 +1,130 @@
+#include "sdoslam/dynamic/segmenter.h"
+
+#include <gtest/gtest.h>
+
+#include <map>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "sdoslam/core/error.h"
+#include "sdoslam/synth/renderer.h"
+#include "sdoslam/synth/scenarios.h"
+#include "sdoslam/testing/test_util.h"
+
+namespace sdoslam {
+namespace {
+
+// Best IoU reachable for `object` from whole segments: the union of the segments lying mostly
+// (> 50 %) on it.
+double CoverIou(const cv::Mat& segments, const cv::Mat& object) {
+  std::map<int, std::pair<int, int>> on_off;  // segment → (pixels on, pixels off the object)
+  for (int y = 0; y < segments.rows; ++y) {
+    for (int x = 0; x < segments.cols; ++x) {
+      auto& c = on_off[segments.at<int>(y, x)];
+      (object.at<uint8_t>(y, x) ? c.first : c.second) += 1;
+    }
+  }
+  int inter = 0, extra = 0;
+  for (const auto& [s, c] : on_off) {
+    if (s >= 0 && c.first > c.second) {
+      inter += c.first;
+      extra += c.second;
+    }
+  }
+  const int area = cv::countNonZero(object);
+  return static_cast<double>(inter) / (area + extra);
+}
+
+FrontEndFrame RenderFrame(const std::string& scenario, double t, cv::Mat* instance) {
+  const Camera camera(synth::SyntheticCamera());
+  const synth::Scenario s = synth::MakeScenario(scenario, 10.0);
+  const synth::RenderedView view =
+      synth::Render(s.scene, t, synth::CameraPoseAt(s.motion, t, 10.0), camera);
+  FrontEndFrame f;
+  view.colour.convertTo(f.bgr, CV_8UC3, 255.0);
+  f.depth = view.depth;
+  *instance = view.instance;
+  return f;
+}
+
+// People (ids 1, 2) and hanging pendulum boxes (11–13). Not the box sliding on the floor (14):
+// with a similar colour and no depth step along its contact line it merges with the floor, a
+// known limit of the default segmenter (the README says so).
+TEST(RgbdSegmenter, SeparatesPeopleAndBoxesFromTheRoomByDepth) {
+  const std::map<std::string, std::vector<int>> objects_of = {{"walking_xyz", {1, 2}},
+                                                              {"boxes_translational", {11, 12, 13}}};
+  for (const auto& [scenario, ids] : objects_of) {
+    cv::Mat instance;
+    const FrontEndFrame frame = RenderFrame(scenario, 3.0, &instance);
+    RgbdSegmenter segmenter;
+    const Segmentation s = segmenter.Segment(frame);
+    ASSERT_EQ(s.labels.cols, 160);
+    cv::Mat labels;
+    cv::resize(s.labels, labels, frame.bgr.size(), 0, 0, cv::INTER_NEAREST);
+    double min_iou = 1.0;
+    for (int id : ids) {
+      const cv::Mat object = instance == id;
+      ASSERT_GT(cv::countNonZero(object), 3000) << scenario << " object " << id << " in view";
+      min_iou = std::min(min_iou, CoverIou(labels, object));
+    }
+    EXPECT_GT(min_iou, 0.7) << scenario;
+    // Without depth (colour only, same weights) the textured objects fall apart or merge.
+    RgbdSegmenterOptions colour_only;
+    colour_only.depth_weight = 0;
+    FrontEndFrame no_depth = frame;
+    no_depth.depth = cv::Mat();
+    const Segmentation c = RgbdSegmenter(colour_only).Segment(no_depth);
+    cv::resize(c.labels, labels, frame.bgr.size(), 0, 0, cv::INTER_NEAREST);
+    double colour_min = 1.0;
+    for (int id : ids) colour_min = std::min(colour_min, CoverIou(labels, instance == id));
+    EXPECT_LT(colour_min, min_iou) << scenario;
+  }
+}
+
+TEST(FileSegmenter, ReadsInstanceIdsAndRejectsMissingOrWrongSizedMasks) {
+  testing::TempDir dir;
+  std::filesystem::create_directories(dir / "masks");
+  cv::Mat ids(48, 64, CV_16U, cv::Scalar(0));
+  ids(cv::Rect(0, 0, 10, 10)).setTo(7);
+  ids(cv::Rect(20, 20, 5, 5)).setTo(300);
+  ASSERT_TRUE(cv::imwrite((dir / "masks" / "a.png").string(), ids));
+  ASSERT_TRUE(cv::imwrite((dir / "masks" / "b.png").string(), cv::Mat(40, 64, CV_8U, cv::Scalar(1))));
+  FileSegmenter segmenter(dir / "masks", {64, 48});
+  EXPECT_NO_THROW(segmenter.Validate({"rgb/a.png"}));
+  FrontEndFrame frame;
+  frame.rgb_path = "rgb/a.png";
+  const Segmentation s = segmenter.Segment(frame);
+  EXPECT_EQ(s.count, 2);
+  EXPECT_EQ(s.labels.at<int>(5, 5), 0);
+  EXPECT_EQ(s.labels.at<int>(22, 22), 1);
+  EXPECT_EQ(s.labels.at<int>(40, 40), -1);
+  try {
+    segmenter.Validate({"rgb/a.png", "rgb/b.png"});
+    FAIL() << "a wrong-sized mask must be rejected";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("b.png: instance mask is 64x40, the images are 64x48"),
+              std::string::npos)
+        << e.what();
+  }
+  try {
+    segmenter.Validate({"rgb/c.png"});
+    FAIL() << "a missing mask must be rejected";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("c.png: no instance mask"), std::string::npos);
+  }
+  EXPECT_THROW(FileSegmenter(dir / "absent", {64, 48}), Error);
+}
+
+TEST(PngHeader, ReadsSizeAndRejectsOtherFiles) {
+  testing::TempDir dir;
+  ASSERT_TRUE(cv::imwrite((dir / "x.png").string(), cv::Mat(7, 11, CV_16U, cv::Scalar(0))));
+  const PngHeader h = ReadPngHeader(dir / "x.png");
+  EXPECT_EQ(h.width, 11);
+  EXPECT_EQ(h.height, 7);
+  EXPECT_EQ(h.bit_depth, 16);
+  testing::WriteText(dir / "y.png", "not a png at all, but long enough");
+  EXPECT_THROW(ReadPngHeader(dir / "y.png"), Error);
+}
+
+}  // namespace
+}  // namespace sdoslam
