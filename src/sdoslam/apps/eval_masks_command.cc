@@ -87,8 +87,10 @@ void EvalMasks(const EvalMasksArgs& args) {
 void AddEvalMasksCommand(CLI::App& app) {
   auto args = std::make_shared<EvalMasksArgs>();
   CLI::App* cmd = app.add_subcommand(
-      "eval-masks", "precision, recall and IoU of saved dynamic masks against synthetic ground truth");
-  cmd->add_option("--dataset", args->dataset, "synthetic sequence (dynamic/, instance/, objects.json)")
+      "eval-masks",
+      "precision, recall and IoU of saved dynamic masks against synthetic ground truth");
+  cmd->add_option("--dataset", args->dataset,
+                  "synthetic sequence (dynamic/, instance/, objects.json)")
       ->required();
   cmd->add_option("--run", args->runs, "output folder of `sdoslam run --save-masks` (repeatable)")
       ->required();

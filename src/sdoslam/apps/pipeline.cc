@@ -54,8 +54,7 @@ RunSummary RunOnDataset(const RunOptions& run) {
   dataset_options.associations = run.associations;
   const TumDataset dataset(run.dataset, run.camera, dataset_options);
   RunSummary summary;
-  summary.frames =
-      run.max_frames > 0 ? std::min(dataset.size(), run.max_frames) : dataset.size();
+  summary.frames = run.max_frames > 0 ? std::min(dataset.size(), run.max_frames) : dataset.size();
   const cv::Size image_size(run.camera.width, run.camera.height);
   std::vector<std::filesystem::path> rgb_paths;
   for (size_t i = 0; i < summary.frames; ++i) rgb_paths.push_back(dataset.entries()[i].rgb_path);
@@ -69,12 +68,14 @@ RunSummary RunOnDataset(const RunOptions& run) {
     for (const auto& rgb : rgb_paths) {
       const auto path = run.dataset / "dynamic" / rgb.filename();
       if (!std::filesystem::exists(path))
-        throw Error(path.string() + ": oracle mode needs the ground-truth dynamic masks of a "
+        throw Error(path.string() +
+                    ": oracle mode needs the ground-truth dynamic masks of a "
                     "synthetic sequence (sdoslam synth writes them)");
     }
   }
   std::optional<MaskEvaluator> mask_evaluator;
-  if (run.mode != RunMode::kConventional && std::filesystem::is_directory(run.dataset / "dynamic") &&
+  if (run.mode != RunMode::kConventional &&
+      std::filesystem::is_directory(run.dataset / "dynamic") &&
       std::filesystem::is_directory(run.dataset / "instance")) {
     mask_evaluator.emplace(run.dataset);
   }
@@ -127,8 +128,8 @@ RunSummary RunOnDataset(const RunOptions& run) {
     }
     summary.lost += r.state == TrackingState::kLost;
     frame_ms.push_back(timing.features_ms + timing.tracking_ms);
-    const int dynamic_features = static_cast<int>(
-        std::count_if(r.feature_labels.begin(), r.feature_labels.end(), [](uint8_t l) { return l != 0; }));
+    const int dynamic_features = static_cast<int>(std::count_if(
+        r.feature_labels.begin(), r.feature_labels.end(), [](uint8_t l) { return l != 0; }));
     log += fmt::format(
         "{},{:.6f},{},{},{},{},{},{},{},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f}\n",
         i, r.timestamp, ToString(r.state), r.features, r.features_with_depth, dynamic_features,
@@ -141,8 +142,9 @@ RunSummary RunOnDataset(const RunOptions& run) {
     const std::string name = rgb_paths[i].filename().string();
     if (run.save_overlays) {
       const cv::Mat empty_labels(image_size, CV_8U, cv::Scalar(0));
-      const cv::Mat overlay = DrawOverlay(frame.bgr, labels.empty() ? empty_labels : labels,
-                                          sdo ? &*sdo : nullptr, r.feature_points, r.feature_labels);
+      const cv::Mat overlay =
+          DrawOverlay(frame.bgr, labels.empty() ? empty_labels : labels, sdo ? &*sdo : nullptr,
+                      r.feature_points, r.feature_labels);
       if (!cv::imwrite((run.out / "overlays" / name).string(), overlay))
         throw Error((run.out / "overlays" / name).string() + ": cannot write");
     }
@@ -171,7 +173,8 @@ RunSummary RunOnDataset(const RunOptions& run) {
 
   WriteTumTrajectory(run.out / "CameraTrajectory.txt", summary.trajectory);
   WriteTumTrajectory(run.out / "KeyFrameTrajectory.txt", slam.KeyFrameTrajectory());
-  WriteFileAtomically(run.out / "config.yaml", [&](std::ostream& o) { o << resolved.c_str() << '\n'; });
+  WriteFileAtomically(run.out / "config.yaml",
+                      [&](std::ostream& o) { o << resolved.c_str() << '\n'; });
   WriteFileAtomically(run.out / "frames.csv", [&](std::ostream& o) { o << log; });
   if (run.save_masks)
     WriteFileAtomically(run.out / "features.csv", [&](std::ostream& o) { o << feature_log; });

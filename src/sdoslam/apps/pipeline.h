@@ -43,7 +43,8 @@ struct RunSummary {
   double median_mapping_ms = 0;    // per keyframe
   Trajectory trajectory;
   std::optional<EstimateEvaluation> evaluation;  // when the dataset has groundtruth.txt
-  std::optional<MaskEvaluation> masks;  // when the dataset has ground-truth masks (not conventional)
+  std::optional<MaskEvaluation>
+      masks;  // when the dataset has ground-truth masks (not conventional)
 };
 
 // Runs SLAM over the sequence and writes CameraTrajectory.txt, KeyFrameTrajectory.txt,

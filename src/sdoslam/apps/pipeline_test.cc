@@ -46,8 +46,9 @@ ModeResults RunAllModes(const std::string& scenario, const testing::TempDir& dir
     EXPECT_TRUE(s.evaluation.has_value());
     EXPECT_GE(s.tracked, kFrames - 5u) << ToString(mode);
     const double ate = s.evaluation ? s.evaluation->ate.translation.rmse : 1e9;
-    (mode == RunMode::kConventional ? r.conventional : mode == RunMode::kOracle ? r.oracle : r.sdo) =
-        ate;
+    (mode == RunMode::kConventional ? r.conventional
+     : mode == RunMode::kOracle     ? r.oracle
+                                    : r.sdo) = ate;
     if (mode == RunMode::kSdo) {
       EXPECT_TRUE(s.masks.has_value());
       if (s.masks) r.masks = *s.masks;
@@ -132,7 +133,7 @@ TEST(Pipeline, NanoDetRunsInsideThePipeline) {
   // The overlay of the first frame shows the detector's yellow boxes (tv, keyboard, ...).
   const cv::Mat overlay = cv::imread((dir / "sdo" / "overlays" / "1311868164.363181.png").string());
   ASSERT_FALSE(overlay.empty());
-  EXPECT_GT(cv::countNonZero(cv::Mat(overlay == cv::Scalar(0, 255, 255)).reshape(1) ), 0);
+  EXPECT_GT(cv::countNonZero(cv::Mat(overlay == cv::Scalar(0, 255, 255)).reshape(1)), 0);
 }
 
 // Bad inputs fail before the first frame, and no result file is written.

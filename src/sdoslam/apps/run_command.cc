@@ -81,9 +81,11 @@ void AddRunCommand(CLI::App& app) {
                   "conventional (all features), sdo (the dynamic front end), oracle (ground-truth "
                   "masks of a synthetic sequence)")
       ->capture_default_str();
-  cmd->add_option("--segmenter", args->segmenter, "override dynamic.segmenter.backend: rgbd, "
+  cmd->add_option("--segmenter", args->segmenter,
+                  "override dynamic.segmenter.backend: rgbd, "
                   "onnx-yoloseg, file");
-  cmd->add_option("--detector", args->detector, "override dynamic.detector.backend: nanodet, "
+  cmd->add_option("--detector", args->detector,
+                  "override dynamic.detector.backend: nanodet, "
                   "fastestdet, yolov8, hog, file, none");
   cmd->add_option("--detector-model", args->detector_model, "ONNX file of the detector");
   cmd->add_option("--flow", args->flow, "override dynamic.flow.backend: dis, farneback, onnx");

@@ -54,7 +54,8 @@ void ConfigMap::ReadList(const std::string& key, std::vector<std::string>* value
   if (!child.IsSequence()) throw Error(Where(child) + Path(key) + ": expected a list [a, b, ...]");
   values->clear();
   for (const YAML::Node& item : child) {
-    if (!item.IsScalar()) throw Error(Where(item) + Path(key) + ": list items must be single values");
+    if (!item.IsScalar())
+      throw Error(Where(item) + Path(key) + ": list items must be single values");
     values->push_back(item.Scalar());
   }
 }

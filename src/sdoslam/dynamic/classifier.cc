@@ -10,10 +10,10 @@ namespace {
 
 struct SegmentStats {
   int area = 0;
-  int outline = 0;            // outline pixels
+  int outline = 0;  // outline pixels
   int outline_on_boundary = 0;
-  int depth_pairs = 0;        // neighbour pairs across the outline with depth on both sides
-  int in_front = 0;           // ... where this segment is the nearer side
+  int depth_pairs = 0;  // neighbour pairs across the outline with depth on both sides
+  int in_front = 0;     // ... where this segment is the nearer side
   float median_depth = 0;
   std::vector<float> depths;
 };
@@ -125,12 +125,11 @@ SdoResult SdoClassifier::Classify(const Segmentation& segments,
   const auto& movable = options_.movable_classes;
   for (const Detection& det : detections) {
     if (std::find(movable.begin(), movable.end(), det.class_name) == movable.end()) continue;
-    const cv::Rect box =
-        cv::Rect(cv::Point(static_cast<int>(std::floor(det.box.x * scale)),
-                           static_cast<int>(std::floor(det.box.y * scale))),
-                 cv::Point(static_cast<int>(std::ceil(det.box.br().x * scale)),
-                           static_cast<int>(std::ceil(det.box.br().y * scale)))) &
-        cv::Rect(0, 0, work.width, work.height);
+    const cv::Rect box = cv::Rect(cv::Point(static_cast<int>(std::floor(det.box.x * scale)),
+                                            static_cast<int>(std::floor(det.box.y * scale))),
+                                  cv::Point(static_cast<int>(std::ceil(det.box.br().x * scale)),
+                                            static_cast<int>(std::ceil(det.box.br().y * scale)))) &
+                         cv::Rect(0, 0, work.width, work.height);
     if (box.area() <= 0) continue;
     std::vector<int> inside(static_cast<size_t>(n), 0);
     for (int y = box.y; y < box.br().y; ++y) {
@@ -157,12 +156,14 @@ SdoResult SdoClassifier::Classify(const Segmentation& segments,
       std::vector<uint8_t> joins(static_cast<size_t>(n), 0);
       for (int s = 0; s < n; ++s) {
         const SegmentStats& st = stats[static_cast<size_t>(s)];
-        const bool mostly_inside = inside[static_cast<size_t>(s)] >= options_.min_inside_box * st.area;
+        const bool mostly_inside =
+            inside[static_cast<size_t>(s)] >= options_.min_inside_box * st.area;
         const bool same_depth =
             best_depth <= 0 || st.median_depth <= 0 ||
             std::abs(st.median_depth - best_depth) <= options_.same_depth_tolerance * best_depth;
         joins[static_cast<size_t>(s)] = s == best || (mostly_inside && same_depth && st.area > 0);
-        if (joins[static_cast<size_t>(s)]) result.segment_labels[static_cast<size_t>(s)] = kKnownMovable;
+        if (joins[static_cast<size_t>(s)])
+          result.segment_labels[static_cast<size_t>(s)] = kKnownMovable;
       }
       for (int y = box.y; y < box.br().y; ++y) {
         const int* row = seg.ptr<int>(y);
@@ -181,9 +182,10 @@ SdoResult SdoClassifier::Classify(const Segmentation& segments,
   for (int s = 0; s < n; ++s) {
     const SegmentStats& st = stats[static_cast<size_t>(s)];
     if (st.outline == 0 || st.area > max_area) continue;
-    const bool on_boundary = st.outline_on_boundary >= options_.min_outline_on_boundary * st.outline;
-    const bool in_front = st.depth_pairs == 0 ||
-                          st.in_front >= options_.min_in_front * st.depth_pairs;
+    const bool on_boundary =
+        st.outline_on_boundary >= options_.min_outline_on_boundary * st.outline;
+    const bool in_front =
+        st.depth_pairs == 0 || st.in_front >= options_.min_in_front * st.depth_pairs;
     moving[static_cast<size_t>(s)] = on_boundary && in_front;
   }
   // Persistence: carry the memory to this frame along the flow (backward lookup, first order),
@@ -198,7 +200,8 @@ SdoResult SdoClassifier::Classify(const Segmentation& segments,
       for (int y = 0; y < work.height; ++y) {
         for (int x = 0; x < work.width; ++x) {
           const cv::Vec2f f = flow_work.at<cv::Vec2f>(y, x);
-          map.at<cv::Vec2f>(y, x) = cv::Vec2f(static_cast<float>(x) - f[0], static_cast<float>(y) - f[1]);
+          map.at<cv::Vec2f>(y, x) =
+              cv::Vec2f(static_cast<float>(x) - f[0], static_cast<float>(y) - f[1]);
         }
       }
       cv::remap(memory_, memory, map, cv::noArray(), cv::INTER_NEAREST, cv::BORDER_CONSTANT);

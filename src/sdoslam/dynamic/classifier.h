@@ -16,9 +16,8 @@ namespace sdoslam {
 struct SdoClassifierOptions {
   // Known classes that can move; their segments are dynamic whether moving or not (paper).
   std::vector<std::string> movable_classes = {
-      "person", "bicycle", "car",   "motorcycle", "bus",   "train", "truck",
-      "boat",   "bird",    "cat",   "dog",        "horse", "sheep", "cow",
-      "elephant", "bear",  "zebra", "giraffe"};
+      "person", "bicycle", "car",   "motorcycle", "bus", "train",    "truck", "boat",  "bird",
+      "cat",    "dog",     "horse", "sheep",      "cow", "elephant", "bear",  "zebra", "giraffe"};
   int work_width = 160;  // px; classification resolution (aspect kept)
 
   // Known objects. The box's class goes to the segment of highest IoU with it (paper); other
@@ -51,12 +50,12 @@ struct SdoClassifierOptions {
 };
 
 struct SdoResult {
-  cv::Mat labels;       // CV_8U at image size: DynamicLabel per pixel
-  cv::Mat work_labels;  // the same at work resolution
-  Segmentation segments;                 // at work resolution
-  std::vector<uint8_t> segment_labels;   // DynamicLabel per segment
-  std::vector<Detection> detections;     // image pixels
-  cv::Mat boundary_mask;                 // CV_8U at work resolution, 255 = motion boundary
+  cv::Mat labels;                       // CV_8U at image size: DynamicLabel per pixel
+  cv::Mat work_labels;                  // the same at work resolution
+  Segmentation segments;                // at work resolution
+  std::vector<uint8_t> segment_labels;  // DynamicLabel per segment
+  std::vector<Detection> detections;    // image pixels
+  cv::Mat boundary_mask;                // CV_8U at work resolution, 255 = motion boundary
 };
 
 class SdoClassifier {

@@ -46,8 +46,8 @@ TEST(SdoClassifier, MovableKnownClassMarksItsSegmentAndOtherClassesDoNot) {
   const std::vector<Detection> detections = {
       {0, "person", 0.9f, cv::Rect2f(18, 28, 34, 64)},   // around A
       {56, "chair", 0.9f, cv::Rect2f(98, 38, 40, 40)}};  // around B: not movable
-  const SdoResult r = classifier.Classify(s.segments, detections, cv::Mat(), cv::Mat(), s.depth,
-                                          {160, 120});
+  const SdoResult r =
+      classifier.Classify(s.segments, detections, cv::Mat(), cv::Mat(), s.depth, {160, 120});
   EXPECT_EQ(r.segment_labels, (std::vector<uint8_t>{kStatic, kKnownMovable, kStatic}));
   EXPECT_EQ(Count(r.labels, kKnownMovable), s.a.area());
   EXPECT_EQ(cv::countNonZero(r.labels(s.a) == kKnownMovable), s.a.area());
@@ -62,9 +62,9 @@ TEST(SdoClassifier, PersonSplitIntoPartsIsWholeButTheWallInsideTheBoxIsNot) {
   s.segments.labels(cv::Rect(52, 30, 6, 20)).setTo(4);
   s.segments.count = 5;
   SdoClassifier classifier(ExactOptions());
-  const SdoResult r = classifier.Classify(
-      s.segments, {{0, "person", 0.9f, cv::Rect2f(18, 28, 42, 64)}}, cv::Mat(), cv::Mat(),
-      s.depth, {160, 120});
+  const SdoResult r =
+      classifier.Classify(s.segments, {{0, "person", 0.9f, cv::Rect2f(18, 28, 42, 64)}}, cv::Mat(),
+                          cv::Mat(), s.depth, {160, 120});
   EXPECT_EQ(r.segment_labels[1], kKnownMovable);
   EXPECT_EQ(r.segment_labels[3], kKnownMovable);
   EXPECT_EQ(r.segment_labels[4], kStatic);
@@ -75,17 +75,17 @@ TEST(SdoClassifier, BoxWithoutAMatchingSegmentIsLabelledItself) {
   Scene s;
   s.segments.labels.setTo(-1);  // a segmenter that found nothing
   SdoClassifier classifier(ExactOptions());
-  const SdoResult r = classifier.Classify(
-      s.segments, {{16, "dog", 0.8f, cv::Rect2f(60, 10, 20, 30)}}, cv::Mat(), cv::Mat(), s.depth,
-      {160, 120});
+  const SdoResult r =
+      classifier.Classify(s.segments, {{16, "dog", 0.8f, cv::Rect2f(60, 10, 20, 30)}}, cv::Mat(),
+                          cv::Mat(), s.depth, {160, 120});
   EXPECT_EQ(Count(r.labels, kKnownMovable), 20 * 30);
 }
 
 TEST(SdoClassifier, MotionBoundaryOnAnOutlineSelectsTheObjectNotTheWallBehindIt) {
   Scene s;
   SdoClassifier classifier(ExactOptions());
-  const SdoResult r = classifier.Classify(s.segments, {}, s.OutlineOf(s.b), cv::Mat(), s.depth,
-                                          {160, 120});
+  const SdoResult r =
+      classifier.Classify(s.segments, {}, s.OutlineOf(s.b), cv::Mat(), s.depth, {160, 120});
   // The wall's outline (around the hole of B) is on the boundary too, but the wall is behind.
   EXPECT_EQ(r.segment_labels, (std::vector<uint8_t>{kStatic, kStatic, kMovingUnknown}));
   EXPECT_EQ(Count(r.labels, kMovingUnknown), s.b.area());
@@ -98,8 +98,8 @@ TEST(SdoClassifier, WithoutDepthOrderTheWallWouldBeTakenToo) {
   o.min_in_front = 0.0;
   o.max_segment_area = 1.0;
   SdoClassifier classifier(o);
-  const SdoResult r = classifier.Classify(s.segments, {}, s.OutlineOf(s.b), cv::Mat(), s.depth,
-                                          {160, 120});
+  const SdoResult r =
+      classifier.Classify(s.segments, {}, s.OutlineOf(s.b), cv::Mat(), s.depth, {160, 120});
   EXPECT_EQ(r.segment_labels[2], kMovingUnknown);
   // The wall's outline rings A and B (image borders are not outline); B's ring is ~45 % of it.
   EXPECT_EQ(r.segment_labels[0], kMovingUnknown);
@@ -118,9 +118,8 @@ TEST(SdoClassifier, SelectedObjectPersistsForTheConfiguredFramesThenLapses) {
             kMovingUnknown);
   std::vector<uint8_t> seen;
   for (int k = 0; k < 5; ++k) {
-    seen.push_back(
-        classifier.Classify(s.segments, {}, no_boundary, zero_flow, s.depth, {160, 120})
-            .segment_labels[2]);
+    seen.push_back(classifier.Classify(s.segments, {}, no_boundary, zero_flow, s.depth, {160, 120})
+                       .segment_labels[2]);
   }
   // Memory 3 carried and decremented each frame: dynamic for 3 more frames, then static.
   EXPECT_EQ(seen, (std::vector<uint8_t>{kMovingUnknown, kMovingUnknown, kMovingUnknown, kStatic,
@@ -140,11 +139,12 @@ TEST(SdoClassifier, MemoryFollowsTheFlow) {
   moved.depth(b2).setTo(1.5f);
   cv::Mat flow(120, 160, CV_32FC2, cv::Scalar(0, 0));
   flow(b2).setTo(cv::Scalar(-40, 0));
-  const SdoResult r = classifier.Classify(moved.segments, {}, cv::Mat(120, 160, CV_8U, cv::Scalar(0)),
-                                          flow, moved.depth, {160, 120});
+  const SdoResult r = classifier.Classify(
+      moved.segments, {}, cv::Mat(120, 160, CV_8U, cv::Scalar(0)), flow, moved.depth, {160, 120});
   EXPECT_EQ(r.segment_labels[2], kMovingUnknown);
-  const SdoResult without_flow_shift = SdoClassifier(ExactOptions()).Classify(
-      moved.segments, {}, cv::Mat(), cv::Mat(), moved.depth, {160, 120});
+  const SdoResult without_flow_shift =
+      SdoClassifier(ExactOptions())
+          .Classify(moved.segments, {}, cv::Mat(), cv::Mat(), moved.depth, {160, 120});
   EXPECT_EQ(without_flow_shift.segment_labels[2], kStatic);
 }
 

@@ -6,7 +6,6 @@
 #include <fstream>
 #include <functional>
 #include <map>
-
 #include <opencv2/imgcodecs.hpp>
 
 #include "sdoslam/core/error.h"
@@ -47,13 +46,16 @@ TEST(FileDetector, MalformedFilesNameTheFileAndTheEntry) {
   testing::WriteText(dir / "bad.json", "{\"frames\": [");
   EXPECT_NE(MessageOf([&] { FileDetector d(dir / "bad.json"); }).find("bad.json: not valid JSON"),
             std::string::npos);
-  testing::WriteText(dir / "box.json",
-                     R"({"frames": [{"rgb": "a.png", "detections": [{"class": "cat", "box": [1, 2]}]}]})");
-  EXPECT_NE(MessageOf([&] { FileDetector d(dir / "box.json"); })
-                .find("box.json: frames[0].detections[0]: \"box\" must be [x, y, w, h]"),
+  testing::WriteText(
+      dir / "box.json",
+      R"({"frames": [{"rgb": "a.png", "detections": [{"class": "cat", "box": [1, 2]}]}]})");
+  EXPECT_NE(MessageOf([&] {
+              FileDetector d(dir / "box.json");
+            }).find("box.json: frames[0].detections[0]: \"box\" must be [x, y, w, h]"),
             std::string::npos);
-  EXPECT_NE(MessageOf([&] { FileDetector d(dir / "absent.json"); }).find("absent.json: cannot open"),
-            std::string::npos);
+  EXPECT_NE(
+      MessageOf([&] { FileDetector d(dir / "absent.json"); }).find("absent.json: cannot open"),
+      std::string::npos);
 }
 
 TEST(SuppressNonMaxima, KeepsTheBestOfOverlappingBoxesPerClass) {
@@ -81,7 +83,7 @@ TEST(CocoClassNames, EightyInModelOrder) {
   std::string line;
   // Darknet spellings of the same classes.
   const std::map<std::string, std::string> alias = {
-      {"motorbike", "motorcycle"}, {"aeroplane", "airplane"},      {"sofa", "couch"},
+      {"motorbike", "motorcycle"},     {"aeroplane", "airplane"},       {"sofa", "couch"},
       {"pottedplant", "potted plant"}, {"diningtable", "dining table"}, {"tvmonitor", "tv"}};
   for (size_t i = 0; std::getline(in, line) && i < 80; ++i) {
     EXPECT_EQ(alias.count(line) ? alias.at(line) : line, CocoClassNames()[i]);
@@ -116,8 +118,8 @@ bool FindsDeskObjects(const std::vector<Detection>& d, cv::Size image, bool no_p
     EXPECT_LE(x.box.br().x, image.width + 0.5f);
     EXPECT_GE(x.score, 0.3f);
     if (no_person) EXPECT_NE(x.class_name, "person");
-    desk_object |= x.class_name == "tv" || x.class_name == "keyboard" ||
-                   x.class_name == "laptop" || x.class_name == "mouse" || x.class_name == "cup";
+    desk_object |= x.class_name == "tv" || x.class_name == "keyboard" || x.class_name == "laptop" ||
+                   x.class_name == "mouse" || x.class_name == "cup";
   }
   return desk_object;
 }
@@ -151,8 +153,9 @@ TEST_F(OnnxDetectors, AModelOfAnotherFormatIsRejectedBeforeUse) {
 
 TEST(OnnxDetectorFiles, MissingOrNonOnnxFilesAreClearErrors) {
   testing::TempDir dir;
-  EXPECT_NE(MessageOf([&] { MakeNanoDetDetector(dir / "absent.onnx", {}); })
-                .find("absent.onnx: model file for 'nanodet' does not exist"),
+  EXPECT_NE(MessageOf([&] {
+              MakeNanoDetDetector(dir / "absent.onnx", {});
+            }).find("absent.onnx: model file for 'nanodet' does not exist"),
             std::string::npos);
   testing::WriteText(dir / "junk.onnx", "this is not a protobuf");
   EXPECT_NE(MessageOf([&] { MakeNanoDetDetector(dir / "junk.onnx", {}); }).find("junk.onnx"),

@@ -44,8 +44,8 @@ class FarnebackFlow : public FlowEstimator {
   cv::Mat Compute(const cv::Mat& previous, const cv::Mat& current) override {
     cv::Mat flow;
     cv::calcOpticalFlowFarneback(GrayAtWidth(previous, options_.work_width),
-                                 GrayAtWidth(current, options_.work_width), flow, 0.5, 3, 15, 3,
-                                 5, 1.2, 0);
+                                 GrayAtWidth(current, options_.work_width), flow, 0.5, 3, 15, 3, 5,
+                                 1.2, 0);
     return flow;
   }
 

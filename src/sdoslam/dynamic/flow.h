@@ -38,8 +38,9 @@ std::unique_ptr<FlowEstimator> MakeDisFlow(const FlowOptions& options);
 std::unique_ptr<FlowEstimator> MakeFarnebackFlow(const FlowOptions& options);
 // A learned-flow network exported to ONNX (e.g. PWC-Net, RAFT): the two images as RGB scaled to
 // [0, 1], either stacked in one 1×6×H×W input or as two 1×3×H×W inputs named in
-// `onnx_input_names`; one output 1×2×H×W of flow in pixels of the input size. H×W is the model's declared input size, or the work size when
-// dynamic. Throws Error naming the file when it is missing or its inputs/outputs do not fit.
+// `onnx_input_names`; one output 1×2×H×W of flow in pixels of the input size. H×W is the model's
+// declared input size, or the work size when dynamic. Throws Error naming the file when it is
+// missing or its inputs/outputs do not fit.
 std::unique_ptr<FlowEstimator> MakeOnnxFlow(const std::filesystem::path& model,
                                             const FlowOptions& options);
 

@@ -156,7 +156,9 @@ FrontEndOptions ReadFrontEndOptions(ConfigMap& root) {
 
 void WriteFrontEndOptions(const FrontEndOptions& o, YAML::Emitter* out) {
   YAML::Emitter& y = *out;
-  auto kv = [&](const char* key, const auto& value) { y << YAML::Key << key << YAML::Value << value; };
+  auto kv = [&](const char* key, const auto& value) {
+    y << YAML::Key << key << YAML::Value << value;
+  };
   y << YAML::Key << "dynamic" << YAML::Value << YAML::BeginMap;
   y << YAML::Key << "segmenter" << YAML::Value << YAML::BeginMap;
   kv("backend", o.segmenter);
@@ -228,8 +230,8 @@ FrontEnd::FrontEnd(const FrontEndOptions& options, const std::filesystem::path& 
   } else if (options_.segmenter == "onnx-yoloseg") {
     segmenter_ = std::make_unique<OnnxYoloSegSegmenter>(options_.segmenter_model, options_.yoloseg);
   } else {
-    auto file = std::make_unique<FileSegmenter>(Resolve(options_.masks_folder, dataset_folder),
-                                                image_size);
+    auto file =
+        std::make_unique<FileSegmenter>(Resolve(options_.masks_folder, dataset_folder), image_size);
     file->Validate(rgb_paths);
     segmenter_ = std::move(file);
   }
@@ -260,8 +262,7 @@ FrontEnd::~FrontEnd() = default;
 SdoResult FrontEnd::Process(const FrontEndFrame& frame, FrontEndTiming* timing) {
   if (frame.bgr.size() != image_size_) {
     throw Error(fmt::format("frame {}: image is {}x{}, the front end expects {}x{}", frame.index,
-                            frame.bgr.cols, frame.bgr.rows, image_size_.width,
-                            image_size_.height));
+                            frame.bgr.cols, frame.bgr.rows, image_size_.width, image_size_.height));
   }
   FrontEndTiming t;
   auto start = std::chrono::steady_clock::now();

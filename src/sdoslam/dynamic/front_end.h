@@ -22,13 +22,13 @@ namespace sdoslam {
 
 // Backends and settings of the dynamic-object front end (config section `dynamic:`).
 struct FrontEndOptions {
-  std::string segmenter = "rgbd";  // rgbd | onnx-yoloseg | file
+  std::string segmenter = "rgbd";         // rgbd | onnx-yoloseg | file
   std::filesystem::path segmenter_model;  // onnx-yoloseg: Fast-SAM / YOLOv8-seg export
   std::filesystem::path masks_folder;     // file: instance PNGs (relative: to the dataset)
   RgbdSegmenterOptions rgbd;
   YoloSegOptions yoloseg;
 
-  std::string detector = "hog";  // nanodet | fastestdet | yolov8 | hog | file | none
+  std::string detector = "hog";           // nanodet | fastestdet | yolov8 | hog | file | none
   std::filesystem::path detector_model;   // ONNX backends
   std::filesystem::path detections_file;  // file: JSON (relative: to the dataset)
   // Run the detector on every n-th frame; in between, boxes follow the mean flow inside them.

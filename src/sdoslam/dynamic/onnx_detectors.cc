@@ -21,7 +21,9 @@ Detection MakeDetection(int class_id, float score, float x0, float y0, float x1,
   x1 = std::clamp(x1, 0.0f, static_cast<float>(image.width));
   y0 = std::clamp(y0, 0.0f, static_cast<float>(image.height));
   y1 = std::clamp(y1, 0.0f, static_cast<float>(image.height));
-  return {class_id, class_id < static_cast<int>(names.size()) ? names[class_id] : "class" + std::to_string(class_id),
+  return {class_id,
+          class_id < static_cast<int>(names.size()) ? names[class_id]
+                                                    : "class" + std::to_string(class_id),
           score, cv::Rect2f(x0, y0, x1 - x0, y1 - y0)};
 }
 

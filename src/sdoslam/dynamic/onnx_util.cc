@@ -49,8 +49,8 @@ cv::Size ModelInputSize(const cv::dnn::Net& net, cv::Size fallback) {
 }
 
 double Letterbox(const cv::Mat& bgr, cv::Size size, cv::Mat* out) {
-  const double scale =
-      std::min(static_cast<double>(size.width) / bgr.cols, static_cast<double>(size.height) / bgr.rows);
+  const double scale = std::min(static_cast<double>(size.width) / bgr.cols,
+                                static_cast<double>(size.height) / bgr.rows);
   cv::Mat resized;
   cv::resize(bgr, resized,
              {static_cast<int>(std::lround(bgr.cols * scale)),

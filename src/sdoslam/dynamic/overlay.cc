@@ -26,7 +26,8 @@ cv::Mat DrawOverlay(const cv::Mat& bgr, const cv::Mat& labels, const SdoResult* 
     for (int y = 0; y + 1 < seg.rows; ++y) {
       for (int x = 0; x + 1 < seg.cols; ++x) {
         const int s = seg.at<int>(y, x);
-        if (s != seg.at<int>(y, x + 1) || s != seg.at<int>(y + 1, x)) outline.at<uint8_t>(y, x) = 255;
+        if (s != seg.at<int>(y, x + 1) || s != seg.at<int>(y + 1, x))
+          outline.at<uint8_t>(y, x) = 255;
       }
     }
     cv::Mat outline_full, boundary_full;

@@ -109,7 +109,7 @@ PngHeader ReadPngHeader(const std::filesystem::path& path) {
   if (!in) throw Error(path.string() + ": cannot open");
   std::array<unsigned char, 26> b{};
   in.read(reinterpret_cast<char*>(b.data()), b.size());
-  static constexpr std::array<unsigned char, 8> kSignature = {0x89, 'P', 'N', 'G',
+  static constexpr std::array<unsigned char, 8> kSignature = {0x89, 'P',  'N',  'G',
                                                               '\r', '\n', 0x1a, '\n'};
   if (!in || !std::equal(kSignature.begin(), kSignature.end(), b.begin()) ||
       std::string(b.begin() + 12, b.begin() + 16) != "IHDR") {

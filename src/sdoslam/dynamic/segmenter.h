@@ -29,12 +29,12 @@ class Segmenter {
 // separate from what is behind them by depth even when textured like it; the small colour weight
 // keeps texture blocks of one surface together.
 struct RgbdSegmenterOptions {
-  int work_width = 160;          // px; segmentation runs at this width (aspect kept)
-  double sigma = 0.5;            // Gaussian pre-smoothing of the graph segmentation
-  double k = 300;                // merge threshold: larger = larger segments
-  int min_size = 50;             // px at work resolution; smaller segments are merged
-  double colour_weight = 0.5;    // per Lab unit
-  double depth_weight = 200.0;   // per unit of log(depth): 0.1 ≈ a 10 % step
+  int work_width = 160;         // px; segmentation runs at this width (aspect kept)
+  double sigma = 0.5;           // Gaussian pre-smoothing of the graph segmentation
+  double k = 300;               // merge threshold: larger = larger segments
+  int min_size = 50;            // px at work resolution; smaller segments are merged
+  double colour_weight = 0.5;   // per Lab unit
+  double depth_weight = 200.0;  // per unit of log(depth): 0.1 ≈ a 10 % step
   void Check() const;
 };
 

@@ -51,8 +51,8 @@ FrontEndFrame RenderFrame(const std::string& scenario, double t, cv::Mat* instan
 // with a similar colour and no depth step along its contact line it merges with the floor, a
 // known limit of the default segmenter (the README says so).
 TEST(RgbdSegmenter, SeparatesPeopleAndBoxesFromTheRoomByDepth) {
-  const std::map<std::string, std::vector<int>> objects_of = {{"walking_xyz", {1, 2}},
-                                                              {"boxes_translational", {11, 12, 13}}};
+  const std::map<std::string, std::vector<int>> objects_of = {
+      {"walking_xyz", {1, 2}}, {"boxes_translational", {11, 12, 13}}};
   for (const auto& [scenario, ids] : objects_of) {
     cv::Mat instance;
     const FrontEndFrame frame = RenderFrame(scenario, 3.0, &instance);
@@ -88,7 +88,8 @@ TEST(FileSegmenter, ReadsInstanceIdsAndRejectsMissingOrWrongSizedMasks) {
   ids(cv::Rect(0, 0, 10, 10)).setTo(7);
   ids(cv::Rect(20, 20, 5, 5)).setTo(300);
   ASSERT_TRUE(cv::imwrite((dir / "masks" / "a.png").string(), ids));
-  ASSERT_TRUE(cv::imwrite((dir / "masks" / "b.png").string(), cv::Mat(40, 64, CV_8U, cv::Scalar(1))));
+  ASSERT_TRUE(
+      cv::imwrite((dir / "masks" / "b.png").string(), cv::Mat(40, 64, CV_8U, cv::Scalar(1))));
   FileSegmenter segmenter(dir / "masks", {64, 48});
   EXPECT_NO_THROW(segmenter.Validate({"rgb/a.png"}));
   FrontEndFrame frame;

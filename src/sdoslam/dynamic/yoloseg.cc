@@ -110,8 +110,9 @@ Segmentation OnnxYoloSegSegmenter::Segment(const FrontEndFrame& frame) {
 
   const cv::Mat protos(m, ph * pw, CV_32F, const_cast<float*>(proto->ptr<float>()));
   const cv::Size input = impl_->input;
-  const cv::Rect content(0, 0, std::min(input.width, static_cast<int>(std::lround(frame.bgr.cols * scale))),
-                         std::min(input.height, static_cast<int>(std::lround(frame.bgr.rows * scale))));
+  const cv::Rect content(
+      0, 0, std::min(input.width, static_cast<int>(std::lround(frame.bgr.cols * scale))),
+      std::min(input.height, static_cast<int>(std::lround(frame.bgr.rows * scale))));
   cv::Mat ids(frame.bgr.size(), CV_32S, cv::Scalar(0));
   int next_id = 1;
   for (int k : keep) {

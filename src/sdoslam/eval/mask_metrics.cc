@@ -46,7 +46,8 @@ MaskEvaluator::MaskEvaluator(const std::filesystem::path& sequence) : sequence_(
     const nlohmann::json j = nlohmann::json::parse(in);
     for (const auto& o : j.at("objects")) {
       const bool known = o.value("known", false) && o.at("class").is_string();
-      class_of_instance_[o.at("id").get<int>()] = known ? o.at("class").get<std::string>() : "unknown";
+      class_of_instance_[o.at("id").get<int>()] =
+          known ? o.at("class").get<std::string>() : "unknown";
     }
   } catch (const nlohmann::json::exception& e) {
     throw Error(objects.string() + ": " + e.what());
@@ -57,7 +58,8 @@ void MaskEvaluator::AddFrame(const std::filesystem::path& rgb_path, const cv::Ma
                              const std::vector<cv::Point2f>& features,
                              const std::vector<uint8_t>& feature_labels) {
   const std::string name = rgb_path.filename().string();
-  const auto dynamic_path = sequence_ / "dynamic" / name, instance_path = sequence_ / "instance" / name;
+  const auto dynamic_path = sequence_ / "dynamic" / name,
+             instance_path = sequence_ / "instance" / name;
   const cv::Mat truth = cv::imread(dynamic_path.string(), cv::IMREAD_UNCHANGED);
   const cv::Mat instance = cv::imread(instance_path.string(), cv::IMREAD_UNCHANGED);
   if (truth.empty()) throw Error(dynamic_path.string() + ": cannot read the ground-truth mask");
@@ -139,8 +141,8 @@ void MaskEvaluator::AddFrame(const std::filesystem::path& rgb_path, const cv::Ma
 
 std::string FormatMaskEvaluation(const MaskEvaluation& e, const std::string& label) {
   std::string s = fmt::format("{}: {} frames\n", label, e.frames);
-  s += fmt::format("  pixels:   precision {:.3f}  recall {:.3f}  IoU {:.3f}\n", e.pixels.Precision(),
-                   e.pixels.Recall(), e.pixels.Iou());
+  s += fmt::format("  pixels:   precision {:.3f}  recall {:.3f}  IoU {:.3f}\n",
+                   e.pixels.Precision(), e.pixels.Recall(), e.pixels.Iou());
   s += fmt::format("  features: precision {:.3f}  recall {:.3f}  ({} dynamic of {})\n",
                    e.features.Precision(), e.features.Recall(),
                    e.features.true_positive + e.features.false_negative,

@@ -68,10 +68,10 @@ void Frame::SetLabels(const cv::Mat& label_image) {
   if (!label_image.empty()) {
     CV_Assert(label_image.type() == CV_8UC1);
     for (size_t i = 0; i < size(); ++i) {
-      const int u = std::clamp(static_cast<int>(std::lround(keypoints[i].pt.x)), 0,
-                               label_image.cols - 1);
-      const int v = std::clamp(static_cast<int>(std::lround(keypoints[i].pt.y)), 0,
-                               label_image.rows - 1);
+      const int u =
+          std::clamp(static_cast<int>(std::lround(keypoints[i].pt.x)), 0, label_image.cols - 1);
+      const int v =
+          std::clamp(static_cast<int>(std::lround(keypoints[i].pt.y)), 0, label_image.rows - 1);
       label[i] = label_image.at<uint8_t>(v, u);
       if (label[i] != 0) map_points[i] = nullptr;
     }

@@ -92,7 +92,8 @@ TrackingResult Tracker::Track(Frame frame, KeyFrame** new_keyframe, bool mapping
   }
   temporary_points_.clear();
   result.feature_tracked.assign(frame.size(), 0);
-  for (size_t i = 0; i < frame.size(); ++i) result.feature_tracked[i] = frame.map_points[i] != nullptr;
+  for (size_t i = 0; i < frame.size(); ++i)
+    result.feature_tracked[i] = frame.map_points[i] != nullptr;
 
   state_ = ok ? TrackingState::kOk : TrackingState::kLost;
   result.state = state_;
