@@ -125,7 +125,8 @@ TEST(CliDemo, RunsWithoutDataAndPrintsResults) {
   EXPECT_NE(r.output.find("ATE rmse"), std::string::npos);
   EXPECT_NE(r.output.find("rendered 40 frames"), std::string::npos);
   EXPECT_TRUE(std::filesystem::exists(dir / "walking_xyz" / "groundtruth.txt"));
-  EXPECT_TRUE(std::filesystem::exists(dir / "slam" / "static_room" / "CameraTrajectory.txt"));
+  EXPECT_TRUE(
+      std::filesystem::exists(dir / "slam" / "static_room_conventional" / "CameraTrajectory.txt"));
   EXPECT_TRUE(std::filesystem::exists(dir / "plots" / "ate_over_time.png"));
 }
 

@@ -22,7 +22,7 @@ struct RunArgs {
   std::string associations;
   int max_frames = 0;
   bool sequential = false;
-  std::string mode = "conventional";
+  std::string mode;  // empty: the config's `mode:` or conventional
   std::string segmenter, detector, detector_model, flow;
   bool save_overlays = false;
   bool save_masks = false;
@@ -31,8 +31,10 @@ struct RunArgs {
 void RunSlam(const RunArgs& args) {
   // Everything that can be wrong with the inputs is found before the first frame.
   RunOptions run;
-  run.mode = ParseRunMode(args.mode);
   ConfigMap root = ConfigMap::LoadFile(args.config);
+  std::string mode = "conventional";
+  root.Read("mode", &mode);  // a run's resolved config.yaml records it
+  run.mode = ParseRunMode(args.mode.empty() ? mode : args.mode);
   std::optional<ConfigMap> camera_section = root.Section("camera");
   if (!camera_section) throw Error(args.config + ": missing the 'camera:' section");
   run.camera = ReadCameraOptions(*camera_section);
@@ -79,8 +81,7 @@ void AddRunCommand(CLI::App& app) {
                 "map inline after each keyframe: bit-identical runs (default: a mapping thread)");
   cmd->add_option("--mode", args->mode,
                   "conventional (all features), sdo (the dynamic front end), oracle (ground-truth "
-                  "masks of a synthetic sequence)")
-      ->capture_default_str();
+                  "masks of a synthetic sequence); default: the config's mode: or conventional");
   cmd->add_option("--segmenter", args->segmenter,
                   "override dynamic.segmenter.backend: rgbd, "
                   "onnx-yoloseg, file");
