@@ -7,14 +7,7 @@
 namespace sdoslam {
 namespace {
 
-std::string MessageOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
+using testing::MessageOf;
 
 TEST(ConfigMap, ReadsValuesAndKeepsDefaultsForAbsentKeys) {
   ConfigMap root = ConfigMap::LoadString("a: 3\nsection:\n  b: 2.5\n  name: hi\n", "inline");

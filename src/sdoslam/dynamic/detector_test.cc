@@ -14,14 +14,7 @@
 namespace sdoslam {
 namespace {
 
-std::string MessageOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
+using testing::MessageOf;
 
 TEST(FileDetector, ReadsDetectionsByRgbFileName) {
   testing::TempDir dir;

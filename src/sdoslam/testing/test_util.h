@@ -4,6 +4,8 @@
 
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <stdexcept>
 #include <string>
 #include <system_error>
 
@@ -39,6 +41,17 @@ inline void WriteText(const std::filesystem::path& path, const std::string& text
 inline std::string ReadText(const std::filesystem::path& path) {
   std::ifstream in(path);
   return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+// The message of the std::exception (sdoslam::Error derives from it) that `f` throws, or
+// "(no error)".
+inline std::string MessageOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "(no error)";
 }
 
 // ../shared next to the checkout; tests that need it skip when it is absent.
