@@ -95,27 +95,31 @@ RunSummary RunOnDataset(const RunOptions& run) {
   System slam(run.camera, run.slam);
   std::string log =
       "index,timestamp,state,features,features_with_depth,dynamic_features,matches,inliers,"
-      "keyframe,front_end_ms,segment_ms,detect_ms,flow_ms,classify_ms,features_ms,tracking_ms,"
-      "mapping_ms\n";
+      "keyframe,check_iterations,check_converged,check_measured,check_dynamic,culled_points,"
+      "front_end_ms,segment_ms,detect_ms,flow_ms,classify_ms,features_ms,tracking_ms,mapping_ms\n";
   std::string feature_log = "index,x,y,label\n";
   std::vector<double> frame_ms, front_end_ms, mapping_ms;
   int best_depth_features = 0;
   for (size_t i = 0; i < summary.frames; ++i) {
     const RgbdFrame frame = dataset.Load(i);
-    cv::Mat labels;
+    cv::Mat labels, segments;
+    std::vector<uint8_t> locked_segments;
     std::optional<SdoResult> sdo;
     FrontEndTiming front_timing;
     if (front_end) {
       FrontEndFrame input{i, frame.timestamp, rgb_paths[i], frame.bgr, frame.depth};
       sdo = front_end->Process(input, &front_timing);
       labels = sdo->labels;
+      segments = sdo->segments.labels;
+      for (uint8_t l : sdo->segment_labels) locked_segments.push_back(l == kKnownMovable);
       front_end_ms.push_back(front_timing.total());
     } else if (run.mode == RunMode::kOracle) {
       labels = LoadOracleLabels(run.dataset, rgb_paths[i], image_size);
     }
     FrameTiming timing;
     const TrackingResult r =
-        slam.TrackRgbd(i, frame.timestamp, frame.bgr, frame.depth, &timing, labels);
+        slam.TrackRgbd(i, frame.timestamp, frame.bgr, frame.depth, &timing, labels, segments,
+                       locked_segments);
     if (r.state == TrackingState::kNotInitialized) {
       best_depth_features = std::max(best_depth_features, r.features_with_depth);
       if (++summary.not_initialized >= 30 && slam.map().keyframes().empty()) {
@@ -131,9 +135,11 @@ RunSummary RunOnDataset(const RunOptions& run) {
     const int dynamic_features = static_cast<int>(std::count_if(
         r.feature_labels.begin(), r.feature_labels.end(), [](uint8_t l) { return l != 0; }));
     log += fmt::format(
-        "{},{:.6f},{},{},{},{},{},{},{},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f}\n",
+        "{},{:.6f},{},{},{},{},{},{},{},{},{},{},{},{},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},"
+        "{:.2f},{:.2f}\n",
         i, r.timestamp, ToString(r.state), r.features, r.features_with_depth, dynamic_features,
-        r.matches, r.inliers, r.keyframe ? 1 : 0, front_timing.total(), front_timing.segment_ms,
+        r.matches, r.inliers, r.keyframe ? 1 : 0, r.check_iterations, r.check_converged ? 1 : 0,
+        r.check_measured, r.check_dynamic, r.culled_points, front_timing.total(), front_timing.segment_ms,
         front_timing.detect_ms, front_timing.flow_ms, front_timing.classify_ms, timing.features_ms,
         timing.tracking_ms, timing.mapping_ms);
     if (!labels.empty() && mask_evaluator) {

@@ -26,6 +26,7 @@ struct RunArgs {
   std::string segmenter, detector, detector_model, flow;
   bool save_overlays = false;
   bool save_masks = false;
+  std::string consistency;  // on | off; empty: the config's consistency.enabled
 };
 
 void RunSlam(const RunArgs& args) {
@@ -47,6 +48,7 @@ void RunSlam(const RunArgs& args) {
   if (!args.detector_model.empty()) run.front_end.detector_model = args.detector_model;
   if (!args.flow.empty()) run.front_end.flow = args.flow;
   run.front_end.Check();
+  if (!args.consistency.empty()) run.slam.tracking.consistency.enabled = args.consistency == "on";
   run.slam.sequential = args.sequential;
   run.dataset = args.dataset;
   run.associations = args.associations;
@@ -71,7 +73,8 @@ void AddRunCommand(CLI::App& app) {
   cmd->add_option("--dataset", args->dataset, "sequence folder (rgb.txt, depth.txt, rgb/, depth/)")
       ->required();
   cmd->add_option("--config", args->config,
-                  "config YAML: camera: and optional orb:, rgbd:, tracking:, mapping:, dynamic:")
+                  "config YAML: camera: and optional orb:, rgbd:, tracking:, consistency:, mapping:, "
+                  "dynamic:")
       ->required();
   cmd->add_option("--out", args->out, "output folder")->required();
   cmd->add_option("--associations", args->associations, "explicit rgb/depth association file");
@@ -90,6 +93,10 @@ void AddRunCommand(CLI::App& app) {
                   "fastestdet, yolov8, hog, file, none");
   cmd->add_option("--detector-model", args->detector_model, "ONNX file of the detector");
   cmd->add_option("--flow", args->flow, "override dynamic.flow.backend: dis, farneback, onnx");
+  cmd->add_option("--consistency", args->consistency,
+                  "mode sdo: the scene-flow consistency check and map hygiene, on (default) or "
+                  "off; overrides consistency.enabled")
+      ->check(CLI::IsMember({"on", "off"}));
   cmd->add_flag("--save-overlays", args->save_overlays,
                 "write overlays/<frame>.png: features (static green, dynamic red), segments, "
                 "motion boundaries, detections");

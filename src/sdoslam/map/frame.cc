@@ -79,6 +79,19 @@ void Frame::SetLabels(const cv::Mat& label_image) {
   BuildGrid();
 }
 
+void Frame::MarkDynamic(int i, uint8_t dynamic_label) {
+  CV_Assert(dynamic_label != 0);
+  const size_t k = static_cast<size_t>(i);
+  label[k] = dynamic_label;
+  map_points[k] = nullptr;
+  const int gx = static_cast<int>((undistorted[k].x - geometry->min_x) * geometry->grid_cell_inv_w);
+  const int gy = static_cast<int>((undistorted[k].y - geometry->min_y) * geometry->grid_cell_inv_h);
+  if (gx >= 0 && gy >= 0 && gx < FrameGeometry::kGridCols && gy < FrameGeometry::kGridRows) {
+    auto& cell = grid_[static_cast<size_t>(gy * FrameGeometry::kGridCols + gx)];
+    cell.erase(std::remove(cell.begin(), cell.end(), i), cell.end());
+  }
+}
+
 void Frame::BuildGrid() {
   grid_.assign(FrameGeometry::kGridCols * FrameGeometry::kGridRows, {});
   for (size_t i = 0; i < size(); ++i) {

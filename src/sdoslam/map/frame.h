@@ -51,6 +51,9 @@ class Frame {
   // position and removes the non-static ones from the position grid. An empty image clears
   // all labels. Call before tracking the frame.
   void SetLabels(const cv::Mat& label_image);
+  // Gives feature i a dynamic label after tracking has started on the frame (the consistency
+  // check): drops its map point and takes it out of the grid.
+  void MarkDynamic(int i, uint8_t dynamic_label);
   // Keypoint i back-projected with its depth, in world coordinates at the frame's pose.
   Eigen::Vector3d UnprojectWorld(int i) const;
   PointObservation Observation(int i) const;

@@ -3,6 +3,8 @@
 #include <yaml-cpp/yaml.h>
 
 #include <chrono>
+#include <opencv2/imgproc.hpp>
+#include <optional>
 
 #include "sdoslam/core/error.h"
 
@@ -47,6 +49,11 @@ SlamOptions ReadSlamOptions(ConfigMap& root) {
     s->Read("projection_radius", &o.tracking.projection_radius);
     s->RejectUnknownKeys();
   }
+  if (auto s = root.Section("consistency")) {
+    SceneFlowOptions::VisitFields(o.tracking.consistency,
+                                  [&](const char* key, auto& value) { s->Read(key, &value); });
+    s->RejectUnknownKeys();
+  }
   if (auto s = root.Section("mapping")) {
     s->Read("fuse_neighbours", &o.mapping.fuse_neighbours);
     s->Read("redundant_ratio", &o.mapping.redundant_ratio);
@@ -77,6 +84,11 @@ void WriteSlamOptions(const SlamOptions& o, YAML::Emitter* out) {
     << YAML::Value << o.tracking.max_frames_between_keyframes << YAML::Key << "reference_ratio"
     << YAML::Value << o.tracking.reference_ratio << YAML::Key << "projection_radius" << YAML::Value
     << o.tracking.projection_radius << YAML::EndMap;
+  y << YAML::Key << "consistency" << YAML::Value << YAML::BeginMap;
+  SceneFlowOptions::VisitFields(o.tracking.consistency, [&](const char* key, const auto& value) {
+    y << YAML::Key << key << YAML::Value << value;
+  });
+  y << YAML::EndMap;
   y << YAML::Key << "mapping" << YAML::Value << YAML::BeginMap << YAML::Key << "fuse_neighbours"
     << YAML::Value << o.mapping.fuse_neighbours << YAML::Key << "redundant_ratio" << YAML::Value
     << o.mapping.redundant_ratio << YAML::Key << "ba_iterations" << YAML::Value
@@ -135,7 +147,8 @@ std::vector<double> System::MappingTimes() const {
 
 TrackingResult System::TrackRgbd(size_t index, double timestamp, const cv::Mat& bgr,
                                  const cv::Mat& depth, FrameTiming* timing,
-                                 const cv::Mat& dynamic_labels) {
+                                 const cv::Mat& dynamic_labels, const cv::Mat& segments,
+                                 const std::vector<uint8_t>& locked_segments) {
   const CameraOptions& c = geometry_->camera.options();
   if (bgr.cols != c.width || bgr.rows != c.height || depth.size() != bgr.size()) {
     throw Error("frame " + std::to_string(index) + ": images are not " + std::to_string(c.width) +
@@ -147,8 +160,21 @@ TrackingResult System::TrackRgbd(size_t index, double timestamp, const cv::Mat& 
     throw Error("frame " + std::to_string(index) +
                 ": the dynamic label image is not 8-bit single-channel of the frame's size");
   }
+  if (!segments.empty() && (segments.type() != CV_32SC1 || segments.cols > bgr.cols)) {
+    throw Error("frame " + std::to_string(index) +
+                ": the segment image is not 32-bit single-channel at most the frame's size");
+  }
   Frame frame(index, timestamp, bgr, depth, geometry_, extractor_);
   if (!dynamic_labels.empty()) frame.SetLabels(dynamic_labels);
+  std::optional<ConsistencyInput> consistency;
+  if (!segments.empty()) {
+    consistency.emplace();
+    cv::cvtColor(bgr, consistency->gray, cv::COLOR_BGR2GRAY);
+    consistency->depth = depth;
+    consistency->labels = dynamic_labels;
+    consistency->segments = segments;
+    consistency->locked_segments = locked_segments;
+  }
   FrameTiming t;
   t.features_ms = MsSince(start);
   start = std::chrono::steady_clock::now();
@@ -162,7 +188,8 @@ TrackingResult System::TrackRgbd(size_t index, double timestamp, const cv::Mat& 
   TrackingResult result;
   {
     std::lock_guard<std::mutex> lock(map_mutex_);
-    result = tracker_->Track(std::move(frame), &keyframe, idle, accepts);
+    result = tracker_->Track(std::move(frame), &keyframe, idle, accepts,
+                             consistency ? &*consistency : nullptr);
   }
   t.tracking_ms = MsSince(start);
   if (keyframe != nullptr) {

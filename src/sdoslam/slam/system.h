@@ -54,9 +54,14 @@ class System {
   // bgr: CV_8UC3; depth: CV_32FC1 metres (0 = none), registered to the colour image.
   // dynamic_labels: optional CV_8U image (0 = static) from a dynamic-object front end;
   // features on non-zero pixels are never tracked nor mapped.
+  // segments: optional CV_32S segment id per pixel (−1: none; any size of the image's aspect),
+  // with `locked_segments` (per segment, 1 = movable known class). When given, the scene-flow
+  // consistency check (tracking.consistency) refines the static set and culls landmarks that
+  // moved; without segments the frame is tracked on the labels alone.
   TrackingResult TrackRgbd(size_t index, double timestamp, const cv::Mat& bgr, const cv::Mat& depth,
-                           FrameTiming* timing = nullptr,
-                           const cv::Mat& dynamic_labels = cv::Mat());
+                           FrameTiming* timing = nullptr, const cv::Mat& dynamic_labels = cv::Mat(),
+                           const cv::Mat& segments = cv::Mat(),
+                           const std::vector<uint8_t>& locked_segments = {});
 
   // Every tracked frame (lost ones left out), with its pose relative to its reference keyframe
   // composed with that keyframe's current (refined) pose. T_world_camera per pose.

@@ -1,6 +1,7 @@
 #include "sdoslam/tracking/tracker.h"
 
 #include <algorithm>
+#include <cmath>
 #include <set>
 
 #include "sdoslam/core/error.h"
@@ -30,6 +31,7 @@ void TrackerOptions::Check() const {
   if (!(reference_ratio > 0 && reference_ratio < 1))
     throw Error("tracking.reference_ratio must be in (0, 1)");
   if (!(projection_radius > 0)) throw Error("tracking.projection_radius must be positive");
+  consistency.Check();
 }
 
 Tracker::Tracker(Map* map, const TrackerOptions& options) : map_(map), options_(options) {
@@ -37,7 +39,8 @@ Tracker::Tracker(Map* map, const TrackerOptions& options) : map_(map), options_(
 }
 
 TrackingResult Tracker::Track(Frame frame, KeyFrame** new_keyframe, bool mapping_idle,
-                              bool mapping_accepts) {
+                              bool mapping_accepts, const ConsistencyInput* consistency) {
+  if (!options_.consistency.enabled) consistency = nullptr;
   *new_keyframe = nullptr;
   ++frame_stamp_;
   TrackingResult result;
@@ -61,6 +64,8 @@ TrackingResult Tracker::Track(Frame frame, KeyFrame** new_keyframe, bool mapping
     trajectory_.push_back({frame.timestamp, state_ == TrackingState::kOk ? reference_ : nullptr,
                            Eigen::Isometry3d::Identity()});
     if (state_ == TrackingState::kOk) last_frame_ = std::make_unique<Frame>(last_keyframe_->frame);
+    RememberFrame(frame.index, state_ == TrackingState::kOk, Eigen::Isometry3d::Identity(),
+                  consistency);
     return result;
   }
 
@@ -81,6 +86,11 @@ TrackingResult Tracker::Track(Frame frame, KeyFrame** new_keyframe, bool mapping
     ok = TrackReferenceKeyFrame(frame);
   }
   if (ok) ok = TrackLocalMap(frame, &result);
+  if (ok && consistency != nullptr) {
+    const std::vector<MapPoint*> judged_dynamic = CheckSceneFlow(frame, *consistency, &result);
+    CheckLandmarks(frame, *consistency, judged_dynamic, &result);
+    result.feature_labels = frame.label;
+  }
   // Drop the temporary points (no observations) and outliers from this frame, and the
   // temporaries from the last frame, before the temporaries are freed.
   for (size_t i = 0; i < frame.size(); ++i) {
@@ -112,7 +122,17 @@ TrackingResult Tracker::Track(Frame frame, KeyFrame** new_keyframe, bool mapping
     has_velocity_ = false;
     trajectory_.push_back({frame.timestamp, nullptr, Eigen::Isometry3d::Identity()});
   }
+  RememberFrame(frame.index, ok, frame.T_camera_world, consistency);
   return result;
+}
+
+void Tracker::RememberFrame(size_t index, bool tracked, const Eigen::Isometry3d& T_camera_world,
+                            const ConsistencyInput* consistency) {
+  if (consistency == nullptr) return;
+  // Cloned: the caller may reuse its buffers for the next frame.
+  history_.push_back(
+      {index, consistency->gray.clone(), consistency->depth.clone(), T_camera_world, tracked});
+  while (static_cast<int>(history_.size()) > options_.consistency.frame_gap) history_.pop_front();
 }
 
 bool Tracker::Initialize(Frame& frame) {
@@ -253,6 +273,7 @@ bool Tracker::TrackLocalMap(Frame& frame, TrackingResult* result) {
     }
   }
   SearchLocalPoints(frame, points, frame_stamp_, 1.0);
+  local_points_ = points;
   for (const MapPoint* p : frame.map_points) result->matches += p != nullptr && !p->bad;
   OptimizeAndCount(frame);
   int inliers = 0;
@@ -314,6 +335,165 @@ KeyFrame* Tracker::CreateKeyFrame(Frame& frame) {
   reference_ = last_keyframe_ = kf;
   last_keyframe_frame_ = frame.index;
   return kf;
+}
+
+std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyInput& input,
+                                               TrackingResult* result) {
+  const SceneFlowOptions& o = options_.consistency;
+  // The earliest remembered frame that was tracked: frame k − frame_gap when all were.
+  const PastFrame* past = nullptr;
+  for (const PastFrame& p : history_) {
+    if (p.tracked && p.index < frame.index) {
+      past = &p;
+      break;
+    }
+  }
+  if (past == nullptr) return {};
+  const Camera& camera = frame.geometry->camera;
+
+  // Candidates: the features still taken as static. Those with depth get a correspondence in the
+  // past frame by Lucas–Kanade, and both ends become landmarks from depth.
+  std::vector<int> candidates;
+  std::vector<cv::Point2f> tracked_points;
+  std::vector<size_t> tracked_slot;
+  for (size_t i = 0; i < frame.size(); ++i) {
+    if (!frame.IsStatic(static_cast<int>(i))) continue;
+    if (frame.HasDepth(static_cast<int>(i))) {
+      tracked_slot.push_back(candidates.size());
+      tracked_points.push_back(frame.keypoints[i].pt);
+    }
+    candidates.push_back(static_cast<int>(i));
+  }
+  std::vector<cv::Point2f> past_points;
+  std::vector<uint8_t> found;
+  TrackPointsBack(o, input.gray, past->gray, tracked_points, &past_points, &found);
+  const std::vector<cv::Point2f> past_undistorted = camera.UndistortPoints(past_points);
+  const Eigen::Isometry3d T_world_past = past->T_camera_world.inverse();
+  const size_t n = candidates.size();
+  std::vector<uint8_t> measured(n, 0);
+  std::vector<Eigen::Vector3d> past_world(n), current_camera(n);
+  for (size_t t = 0; t < tracked_points.size(); ++t) {
+    if (!found[t]) continue;
+    const int u = static_cast<int>(std::lround(past_points[t].x));
+    const int v = static_cast<int>(std::lround(past_points[t].y));
+    const float d = past->depth.at<float>(v, u);
+    if (!(d > 0)) continue;
+    const size_t slot = tracked_slot[t];
+    const size_t i = static_cast<size_t>(candidates[slot]);
+    measured[slot] = 1;
+    past_world[slot] =
+        T_world_past * camera.Unproject({past_undistorted[t].x, past_undistorted[t].y}, d);
+    current_camera[slot] =
+        camera.Unproject({frame.undistorted[i].x, frame.undistorted[i].y}, frame.depth[i]);
+  }
+  std::vector<cv::Point2f> candidate_points;
+  for (int i : candidates) candidate_points.push_back(frame.keypoints[static_cast<size_t>(i)].pt);
+  const std::vector<int> segment =
+      SegmentsAt(input.segments, cv::Size(camera.width(), camera.height()), candidate_points);
+  result->check_measured = static_cast<int>(std::count(measured.begin(), measured.end(), 1));
+
+  // Classify at the rough pose, re-estimate the pose without the dynamic features, and repeat
+  // until the classification stops changing.
+  const std::vector<MapPoint*> matched = frame.map_points;
+  std::vector<uint8_t> dynamic(n, 0), exceeds(n, 0);
+  for (int iteration = 1; iteration <= o.max_iterations; ++iteration) {
+    result->check_iterations = iteration;
+    const Eigen::Isometry3d T_world_camera = frame.T_camera_world.inverse();
+    const Eigen::Vector3d centre = T_world_camera.translation();
+    for (size_t k = 0; k < n; ++k) {
+      if (!measured[k]) continue;
+      const Eigen::Vector3d point = T_world_camera * current_camera[k];
+      exceeds[k] = ExceedsSceneFlowThreshold(o, point - past_world[k], point, centre,
+                                             current_camera[k].z(), frame.geometry->intrinsics.fx);
+    }
+    std::vector<uint8_t> next = ClassifyBySceneFlow(o, measured, exceeds, segment,
+                                                    input.locked_segments);
+    if (next == dynamic) {
+      result->check_converged = true;
+      break;
+    }
+    dynamic = std::move(next);
+    for (size_t k = 0; k < n; ++k) {
+      const size_t i = static_cast<size_t>(candidates[k]);
+      frame.map_points[i] = dynamic[k] ? nullptr : matched[i];
+      frame.outlier[i] = false;
+    }
+    OptimizeAndCount(frame);
+  }
+
+  std::vector<MapPoint*> judged_dynamic;
+  for (size_t k = 0; k < n; ++k) {
+    if (!dynamic[k]) continue;
+    const int i = candidates[k];
+    MapPoint* p = matched[static_cast<size_t>(i)];
+    if (p != nullptr && !p->bad && !p->observations.empty()) judged_dynamic.push_back(p);
+    frame.MarkDynamic(i, kSceneFlowLabel);
+    ++result->check_dynamic;
+  }
+  int inliers = 0;
+  for (size_t i = 0; i < frame.size(); ++i) {
+    const MapPoint* p = frame.map_points[i];
+    inliers += p != nullptr && !p->bad && !frame.outlier[i] && !p->observations.empty();
+  }
+  result->inliers = inliers;
+  return judged_dynamic;
+}
+
+void Tracker::CheckLandmarks(const Frame& frame, const ConsistencyInput& input,
+                             const std::vector<MapPoint*>& judged_dynamic,
+                             TrackingResult* result) {
+  const SceneFlowOptions& o = options_.consistency;
+  const Camera& camera = frame.geometry->camera;
+  std::set<const MapPoint*> handled;
+  auto strike = [&](MapPoint* p) {
+    if (++p->inconsistent >= o.cull_after) {
+      map_->SetBad(p);
+      ++result->culled_points;
+    }
+  };
+  for (MapPoint* p : judged_dynamic) {
+    handled.insert(p);
+    strike(p);
+  }
+  // Landmarks matched as inliers are consistent.
+  for (size_t i = 0; i < frame.size(); ++i) {
+    MapPoint* p = frame.map_points[i];
+    if (p == nullptr || p->bad || frame.outlier[i]) continue;
+    p->inconsistent = 0;
+    handled.insert(p);
+  }
+  // The other local landmarks in view: where the depth image sees through the landmark (a
+  // surface behind it, nothing in front) it has moved away; where it lies on a region the
+  // front end calls dynamic, it moves with it.
+  const int r = o.free_space_radius;
+  const int width = camera.width(), height = camera.height();
+  for (MapPoint* p : local_points_) {
+    if (p->bad || handled.count(p) != 0 || p->observations.empty()) continue;
+    const Eigen::Vector3d X = frame.T_camera_world * p->position;
+    if (X.z() < 0.1) continue;
+    Eigen::Vector2d uv = camera.Project(X);
+    if (camera.HasDistortion()) uv = camera.Distort(uv);
+    const int u = static_cast<int>(std::lround(uv.x())), v = static_cast<int>(std::lround(uv.y()));
+    if (u < r || v < r || u >= width - r || v >= height - r) continue;
+    const double tolerance =
+        o.min_flow + o.noise_sigmas * std::sqrt(2.0) * DepthNoiseSigma(o, X.z());
+    int valid = 0, behind = 0, near = 0;
+    for (int y = v - r; y <= v + r; ++y) {
+      const float* row = input.depth.ptr<float>(y);
+      for (int x = u - r; x <= u + r; ++x) {
+        const double d = row[x];
+        if (!(d > 0)) continue;
+        ++valid;
+        behind += d > X.z() + tolerance;
+        near += std::abs(d - X.z()) <= tolerance;
+      }
+    }
+    const int window = (2 * r + 1) * (2 * r + 1);
+    const bool seen_through = 2 * valid >= window && behind == valid;
+    const bool on_dynamic =
+        near > 0 && !input.labels.empty() && input.labels.at<uint8_t>(v, u) != 0;
+    if (seen_through || on_dynamic) strike(p);
+  }
 }
 
 }  // namespace sdoslam

@@ -1,9 +1,11 @@
 #pragma once
 
+#include <deque>
 #include <memory>
 #include <vector>
 
 #include "sdoslam/map/map.h"
+#include "sdoslam/tracking/scene_flow.h"
 
 namespace sdoslam {
 
@@ -18,7 +20,22 @@ struct TrackerOptions {
   int min_close_points = 100;       // keyframe when fewer close points are tracked...
   int close_points_to_create = 70;  // ...and at least this many new ones could be made
   double projection_radius = 15.0;  // px at level 0, motion-model search
+  SceneFlowOptions consistency;     // the scene-flow consistency check and map hygiene
   void Check() const;
+};
+
+// Label the consistency check gives the features it judges dynamic (the front end's labels are
+// 1 and 2).
+inline constexpr uint8_t kSceneFlowLabel = 3;
+
+// What the consistency check needs besides the frame's features: this frame's images and the
+// front end's segmentation.
+struct ConsistencyInput {
+  cv::Mat gray;    // CV_8U, image size
+  cv::Mat depth;   // CV_32F metres, registered to the colour image (0 = none)
+  cv::Mat labels;  // CV_8U front-end labels at image size (0 = static), or empty
+  cv::Mat segments;  // CV_32S segment per pixel (−1: none) at any size of the image's aspect
+  std::vector<uint8_t> locked_segments;  // per segment: dynamic whatever its scene flow
 };
 
 // Per-frame outcome, for the run log.
@@ -37,6 +54,14 @@ struct TrackingResult {
   std::vector<cv::Point2f> feature_points;
   std::vector<uint8_t> feature_labels;
   std::vector<uint8_t> feature_tracked;
+  // Consistency check: classification rounds run (0: not run), whether the static set reached a
+  // fixed point, features whose scene flow was measured, features it judged dynamic, and
+  // landmarks culled from the map as inconsistent.
+  int check_iterations = 0;
+  bool check_converged = false;
+  int check_measured = 0;
+  int check_dynamic = 0;
+  int culled_points = 0;
 };
 
 // Frame-to-map tracking of ORB-SLAM2 (RGB-D): constant-velocity prediction and projection
@@ -51,8 +76,10 @@ class Tracker {
   // Tracks `frame`. When a keyframe is created it is returned through `new_keyframe`.
   // `mapping_idle`: local mapping has nothing queued (always true when it runs inline);
   // `mapping_accepts`: a keyframe may be queued now.
+  // `consistency`: when given (and enabled in the options), the scene-flow consistency check
+  // refines the static set and the pose, and inconsistent landmarks are culled.
   TrackingResult Track(Frame frame, KeyFrame** new_keyframe, bool mapping_idle = true,
-                       bool mapping_accepts = true);
+                       bool mapping_accepts = true, const ConsistencyInput* consistency = nullptr);
 
   // Each frame's pose relative to its reference keyframe, so that the trajectory follows the
   // keyframes as mapping refines them.
@@ -73,6 +100,16 @@ class Tracker {
   void MakeTemporaryPoints();
   bool NeedKeyFrame(const Frame& frame, int inliers, bool mapping_idle) const;
   KeyFrame* CreateKeyFrame(Frame& frame);
+  // The paper's iterative check (§III-E). Returns the map points of the features it judged
+  // dynamic.
+  std::vector<MapPoint*> CheckSceneFlow(Frame& frame, const ConsistencyInput& input,
+                                        TrackingResult* result);
+  // Keeps this frame's images and pose for the scene flow of the frames to come.
+  void RememberFrame(size_t index, bool tracked, const Eigen::Isometry3d& T_camera_world,
+                     const ConsistencyInput* consistency);
+  // Map hygiene: counts the inconsistency of local landmarks and culls the repeat offenders.
+  void CheckLandmarks(const Frame& frame, const ConsistencyInput& input,
+                      const std::vector<MapPoint*>& judged_dynamic, TrackingResult* result);
 
   Map* map_;
   TrackerOptions options_;
@@ -86,6 +123,15 @@ class Tracker {
   std::vector<std::unique_ptr<MapPoint>> temporary_points_;
   std::vector<TrajectoryEntry> trajectory_;
   uint64_t frame_stamp_ = 0;
+  std::vector<MapPoint*> local_points_;  // of the last TrackLocalMap
+  // The last frames' images and poses, for scene flow.
+  struct PastFrame {
+    size_t index;
+    cv::Mat gray, depth;
+    Eigen::Isometry3d T_camera_world;
+    bool tracked;
+  };
+  std::deque<PastFrame> history_;
 };
 
 }  // namespace sdoslam

@@ -1,0 +1,116 @@
+#include "sdoslam/tracking/scene_flow.h"
+
+#include <algorithm>
+#include <cmath>
+#include <opencv2/video/tracking.hpp>
+
+#include "sdoslam/core/error.h"
+
+namespace sdoslam {
+
+void SceneFlowOptions::Check() const {
+  if (frame_gap < 1) throw Error("consistency.frame_gap must be >= 1");
+  if (!(min_flow >= 0)) throw Error("consistency.min_flow must be >= 0");
+  if (!(noise_sigmas > 0)) throw Error("consistency.noise_sigmas must be positive");
+  if (!(depth_noise_a >= 0) || !(depth_noise_b >= 0))
+    throw Error("consistency.depth_noise_a and depth_noise_b must be >= 0");
+  if (!(pixel_sigma >= 0)) throw Error("consistency.pixel_sigma must be >= 0");
+  if (!(segment_ratio > 0 && segment_ratio < 1))
+    throw Error("consistency.segment_ratio must be in (0, 1)");
+  if (min_segment_features < 1) throw Error("consistency.min_segment_features must be >= 1");
+  if (max_iterations < 1) throw Error("consistency.max_iterations must be >= 1");
+  if (track_window < 5 || track_window % 2 == 0)
+    throw Error("consistency.track_window must be odd and >= 5");
+  if (track_levels < 0 || track_levels > 6)
+    throw Error("consistency.track_levels must be in [0, 6]");
+  if (!(max_track_error > 0)) throw Error("consistency.max_track_error must be positive");
+  if (cull_after < 1) throw Error("consistency.cull_after must be >= 1");
+  if (free_space_radius < 0 || free_space_radius > 10)
+    throw Error("consistency.free_space_radius must be in [0, 10]");
+}
+
+double DepthNoiseSigma(const SceneFlowOptions& o, double depth) {
+  const double d = depth - 0.4;
+  return o.depth_noise_a + o.depth_noise_b * d * d;
+}
+
+bool ExceedsSceneFlowThreshold(const SceneFlowOptions& o, const Eigen::Vector3d& flow_world,
+                               const Eigen::Vector3d& point_world,
+                               const Eigen::Vector3d& camera_centre, double depth,
+                               double focal_px) {
+  const Eigen::Vector3d ray = (point_world - camera_centre).normalized();
+  const double along = std::abs(flow_world.dot(ray));
+  const double across = (flow_world - flow_world.dot(ray) * ray).norm();
+  const double k = o.noise_sigmas * std::sqrt(2.0);
+  const double along_limit = o.min_flow + k * DepthNoiseSigma(o, depth);
+  const double across_limit = o.min_flow + k * o.pixel_sigma * depth / focal_px;
+  return along > along_limit || across > across_limit;
+}
+
+std::vector<uint8_t> ClassifyBySceneFlow(const SceneFlowOptions& o,
+                                         const std::vector<uint8_t>& measured,
+                                         const std::vector<uint8_t>& exceeds,
+                                         const std::vector<int>& segment,
+                                         const std::vector<uint8_t>& locked_segments) {
+  const size_t n = measured.size();
+  CV_Assert(exceeds.size() == n && segment.size() == n);
+  int segments = static_cast<int>(locked_segments.size());
+  for (int s : segment) segments = std::max(segments, s + 1);
+  std::vector<int> measured_count(static_cast<size_t>(segments), 0);
+  std::vector<int> exceeding_count(static_cast<size_t>(segments), 0);
+  for (size_t i = 0; i < n; ++i) {
+    if (segment[i] < 0 || !measured[i]) continue;
+    ++measured_count[static_cast<size_t>(segment[i])];
+    exceeding_count[static_cast<size_t>(segment[i])] += exceeds[i] != 0;
+  }
+  std::vector<uint8_t> segment_dynamic(static_cast<size_t>(segments), 0);
+  for (size_t s = 0; s < segment_dynamic.size(); ++s) {
+    const bool locked = s < locked_segments.size() && locked_segments[s] != 0;
+    const bool by_count = measured_count[s] >= o.min_segment_features &&
+                          exceeding_count[s] > o.segment_ratio * measured_count[s];
+    segment_dynamic[s] = locked || by_count;
+  }
+  std::vector<uint8_t> dynamic(n, 0);
+  for (size_t i = 0; i < n; ++i) {
+    dynamic[i] = (measured[i] && exceeds[i]) ||
+                 (segment[i] >= 0 && segment_dynamic[static_cast<size_t>(segment[i])]);
+  }
+  return dynamic;
+}
+
+void TrackPointsBack(const SceneFlowOptions& o, const cv::Mat& current_gray,
+                     const cv::Mat& previous_gray, const std::vector<cv::Point2f>& points,
+                     std::vector<cv::Point2f>* previous_points, std::vector<uint8_t>* found) {
+  previous_points->assign(points.begin(), points.end());
+  found->assign(points.size(), 0);
+  if (points.empty()) return;
+  std::vector<float> error;
+  cv::calcOpticalFlowPyrLK(
+      current_gray, previous_gray, points, *previous_points, *found, error,
+      cv::Size(o.track_window, o.track_window), o.track_levels,
+      cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.03));
+  const float max_x = static_cast<float>(previous_gray.cols - 1);
+  const float max_y = static_cast<float>(previous_gray.rows - 1);
+  for (size_t i = 0; i < points.size(); ++i) {
+    const cv::Point2f& p = (*previous_points)[i];
+    if (!(error[i] <= o.max_track_error) || p.x < 0 || p.y < 0 || p.x > max_x || p.y > max_y)
+      (*found)[i] = 0;
+  }
+}
+
+std::vector<int> SegmentsAt(const cv::Mat& segment_image, cv::Size image_size,
+                            const std::vector<cv::Point2f>& points) {
+  std::vector<int> out(points.size(), -1);
+  if (segment_image.empty()) return out;
+  CV_Assert(segment_image.type() == CV_32SC1);
+  const double sx = static_cast<double>(segment_image.cols) / image_size.width;
+  const double sy = static_cast<double>(segment_image.rows) / image_size.height;
+  for (size_t i = 0; i < points.size(); ++i) {
+    const int x = std::clamp(static_cast<int>(points[i].x * sx), 0, segment_image.cols - 1);
+    const int y = std::clamp(static_cast<int>(points[i].y * sy), 0, segment_image.rows - 1);
+    out[i] = segment_image.at<int>(y, x);
+  }
+  return out;
+}
+
+}  // namespace sdoslam

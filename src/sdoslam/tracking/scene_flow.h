@@ -1,0 +1,98 @@
+#pragma once
+
+#include <Eigen/Geometry>
+#include <opencv2/core.hpp>
+#include <vector>
+
+namespace sdoslam {
+
+// The consistency check of the paper (§III-E): the 3-D motion of every landmark between an
+// earlier frame and this one, in the world frame, at the rough pose. Static landmarks have
+// near-zero scene flow; features whose scene flow exceeds what sensor noise explains are
+// dynamic, and so is a segment with more than `segment_ratio` of them.
+struct SceneFlowOptions {
+  bool enabled = true;  // only active when the front end hands over segments (mode sdo)
+  // Scene flow from frame k − frame_gap to frame k. A longer baseline lets slow objects move
+  // further than the noise; correspondences come from pyramidal Lucas–Kanade, which follows a
+  // few frames of camera motion easily.
+  int frame_gap = 5;
+  // A feature is dynamic when its scene flow exceeds, along the viewing ray,
+  //   min_flow + noise_sigmas · √2 · σ_z(z),  σ_z(z) = depth_noise_a + depth_noise_b·(z − 0.4)²
+  // (the Kinect's axial noise, Nguyen et al. 2012; √2: two depth readings), or across the ray
+  //   min_flow + noise_sigmas · √2 · pixel_sigma · z / f.
+  // The threshold thus grows with depth as the sensor's noise does; min_flow absorbs the pose
+  // error between the two frames.
+  double min_flow = 0.01;  // metres
+  double noise_sigmas = 3.0;
+  double depth_noise_a = 0.0012;  // metres
+  double depth_noise_b = 0.0019;  // 1/metre
+  double pixel_sigma = 1.0;       // px: keypoint and Lucas–Kanade error together
+  // Segment re-evaluation (paper: 30 %).
+  double segment_ratio = 0.3;
+  int min_segment_features = 3;  // measured features a segment needs to be judged
+  int max_iterations = 5;        // pose re-estimations per frame
+  // Lucas–Kanade: window (px) and pyramid levels; a correspondence whose error per pixel
+  // exceeds max_track_error (8-bit intensity units) is left unmeasured.
+  int track_window = 21;
+  int track_levels = 3;
+  double max_track_error = 20.0;
+  // Map hygiene: a landmark judged inconsistent this many frames in a row (moved away: the
+  // depth image sees through where it should be; or it lies on a dynamic region; or its feature
+  // has large scene flow) is culled from the map.
+  int cull_after = 3;
+  int free_space_radius = 2;  // px: depth window around a landmark's projection
+  void Check() const;
+
+  // Calls visit(key, member) for every setting: one list of config keys for reading and writing.
+  template <class Options, class Visitor>
+  static void VisitFields(Options& o, Visitor&& visit) {
+    visit("enabled", o.enabled);
+    visit("frame_gap", o.frame_gap);
+    visit("min_flow", o.min_flow);
+    visit("noise_sigmas", o.noise_sigmas);
+    visit("depth_noise_a", o.depth_noise_a);
+    visit("depth_noise_b", o.depth_noise_b);
+    visit("pixel_sigma", o.pixel_sigma);
+    visit("segment_ratio", o.segment_ratio);
+    visit("min_segment_features", o.min_segment_features);
+    visit("max_iterations", o.max_iterations);
+    visit("track_window", o.track_window);
+    visit("track_levels", o.track_levels);
+    visit("max_track_error", o.max_track_error);
+    visit("cull_after", o.cull_after);
+    visit("free_space_radius", o.free_space_radius);
+  }
+};
+
+// Axial depth noise σ_z(z) of the options' model, metres.
+double DepthNoiseSigma(const SceneFlowOptions& options, double depth);
+
+// Whether a scene flow (world frame) of a landmark at `point_world`, seen at `depth` from
+// `camera_centre` by a camera of focal length `focal_px`, exceeds the noise thresholds.
+bool ExceedsSceneFlowThreshold(const SceneFlowOptions& options, const Eigen::Vector3d& flow_world,
+                               const Eigen::Vector3d& point_world,
+                               const Eigen::Vector3d& camera_centre, double depth,
+                               double focal_px);
+
+// Segment re-evaluation. Inputs per feature: whether its scene flow was measured and exceeded
+// the threshold, and its segment (−1: none). `locked_segments`: segments that are dynamic
+// whatever their count (movable known classes). Returns per feature whether it is dynamic:
+// exceeding features on their own, and every feature of a segment in which more than
+// `segment_ratio` of at least `min_segment_features` measured features exceed.
+std::vector<uint8_t> ClassifyBySceneFlow(const SceneFlowOptions& options,
+                                         const std::vector<uint8_t>& measured,
+                                         const std::vector<uint8_t>& exceeds,
+                                         const std::vector<int>& segment,
+                                         const std::vector<uint8_t>& locked_segments);
+
+// Follows `points` (pixels of `current_gray`) back into `previous_gray` with pyramidal
+// Lucas–Kanade. `found[i]` is 0 where tracking failed or its error exceeded the options' limit.
+void TrackPointsBack(const SceneFlowOptions& options, const cv::Mat& current_gray,
+                     const cv::Mat& previous_gray, const std::vector<cv::Point2f>& points,
+                     std::vector<cv::Point2f>* previous_points, std::vector<uint8_t>* found);
+
+// Segment id at each point, from a segment image (CV_32S, any size of the image's aspect).
+std::vector<int> SegmentsAt(const cv::Mat& segment_image, cv::Size image_size,
+                            const std::vector<cv::Point2f>& points);
+
+}  // namespace sdoslam

@@ -1,0 +1,123 @@
+#include "sdoslam/tracking/scene_flow.h"
+
+#include <gtest/gtest.h>
+
+#include <opencv2/imgproc.hpp>
+#include <random>
+
+namespace sdoslam {
+namespace {
+
+// A camera at the origin looking along +z; points straight ahead at `depth`.
+bool Exceeds(const SceneFlowOptions& o, const Eigen::Vector3d& flow, double depth) {
+  return ExceedsSceneFlowThreshold(o, flow, Eigen::Vector3d(0, 0, depth), Eigen::Vector3d::Zero(),
+                                   depth, 500.0);
+}
+
+TEST(SceneFlowThreshold, AcrossTheRayFollowsThePixelNoise) {
+  SceneFlowOptions o;  // min_flow 1 cm, 3 σ, 1 px
+  // Across the ray at depth z: 0.01 + 3·√2·z/500 → 1 m: 18.5 mm; 4 m: 43.9 mm.
+  EXPECT_FALSE(Exceeds(o, {0.018, 0, 0}, 1.0));
+  EXPECT_TRUE(Exceeds(o, {0.019, 0, 0}, 1.0));
+  EXPECT_FALSE(Exceeds(o, {0.043, 0, 0}, 4.0));
+  EXPECT_TRUE(Exceeds(o, {0.045, 0, 0}, 4.0));
+}
+
+TEST(SceneFlowThreshold, AlongTheRayFollowsTheDepthNoise) {
+  SceneFlowOptions o;
+  // σ_z(1 m) = 0.0012 + 0.0019·0.36 = 1.884 mm → limit 0.01 + 3√2·1.884 mm = 17.99 mm.
+  EXPECT_FALSE(Exceeds(o, {0, 0, 0.0175}, 1.0));
+  EXPECT_TRUE(Exceeds(o, {0, 0, -0.0185}, 1.0));
+  // σ_z(3 m) = 0.0012 + 0.0019·6.76 = 14.04 mm → limit 69.6 mm: depth noise dominates far away,
+  // while the same flow across the ray (limit 35.5 mm) is caught.
+  EXPECT_FALSE(Exceeds(o, {0, 0, 0.068}, 3.0));
+  EXPECT_TRUE(Exceeds(o, {0, 0, 0.071}, 3.0));
+  EXPECT_TRUE(Exceeds(o, {0.068, 0, 0}, 3.0));
+  EXPECT_NEAR(DepthNoiseSigma(o, 3.0), 0.014044, 1e-6);
+}
+
+TEST(SceneFlowThreshold, SplitsFlowAlongAnObliqueRay) {
+  SceneFlowOptions o;
+  // A point at 45° to the right, 2 m deep: a flow along its ray is judged by the depth noise
+  // (σ_z(2·√2 m)), not the tighter across-ray limit.
+  const Eigen::Vector3d point(2.0, 0, 2.0);
+  const Eigen::Vector3d ray = point.normalized();
+  const double depth = point.norm();
+  const double along_limit = 0.01 + 3 * std::sqrt(2.0) * DepthNoiseSigma(o, depth);
+  const double across_limit = 0.01 + 3 * std::sqrt(2.0) * depth / 500.0;
+  ASSERT_GT(along_limit, across_limit + 0.01);
+  EXPECT_FALSE(ExceedsSceneFlowThreshold(o, 0.95 * along_limit * ray, point,
+                                         Eigen::Vector3d::Zero(), depth, 500.0));
+  const Eigen::Vector3d across(ray.z(), 0, -ray.x());
+  EXPECT_TRUE(ExceedsSceneFlowThreshold(o, 1.05 * across_limit * across, point,
+                                        Eigen::Vector3d::Zero(), depth, 500.0));
+}
+
+TEST(ClassifyBySceneFlow, SegmentsAboveTheRatioTurnDynamicAsAWhole) {
+  SceneFlowOptions o;  // 30 %, at least 3 measured features
+  // Segment 0: 2 of 5 measured exceed (40 %) plus one unmeasured feature -> all 6 dynamic.
+  // Segment 1: 1 of 5 exceeds (20 %) -> only that feature.
+  // Segment 2: 2 of 2 exceed, too few to judge the segment -> only those two; its unmeasured
+  //            feature stays static.
+  // Segment 3: locked (movable class), nothing exceeds -> dynamic.
+  // No segment: an exceeding feature is dynamic on its own.
+  const std::vector<int> segment = {0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 2, 2, 2, 3, 3, -1, -1};
+  const std::vector<uint8_t> measured = {1, 1, 1, 1, 1, 0, 1, 1, 1, 1, 1, 1, 1, 0, 1, 1, 1, 1};
+  const std::vector<uint8_t> exceeds = {1, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 1, 1, 0, 0, 0, 1, 0};
+  const std::vector<uint8_t> locked = {0, 0, 0, 1};
+  const std::vector<uint8_t> expected = {1, 1, 1, 1, 1, 1, 0, 1, 0, 0, 0, 1, 1, 0, 1, 1, 1, 0};
+  EXPECT_EQ(ClassifyBySceneFlow(o, measured, exceeds, segment, locked), expected);
+  o.segment_ratio = 0.45;  // segment 0 (40 %) no longer turns as a whole
+  const std::vector<uint8_t> stricter = {1, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 1, 1, 0, 1, 1, 1, 0};
+  EXPECT_EQ(ClassifyBySceneFlow(o, measured, exceeds, segment, locked), stricter);
+}
+
+TEST(TrackPointsBack, RecoversAKnownShift) {
+  // A textured image and the same moved by (+3.5, −2.25) px: a point p of the moved (current)
+  // image lies at p − (3.5, −2.25) in the previous one.
+  cv::Mat previous(240, 320, CV_8U);
+  std::mt19937 rng(7);
+  cv::Mat noise(60, 80, CV_8U);
+  for (int y = 0; y < noise.rows; ++y)
+    for (int x = 0; x < noise.cols; ++x) noise.at<uint8_t>(y, x) = static_cast<uint8_t>(rng());
+  cv::resize(noise, previous, previous.size(), 0, 0, cv::INTER_CUBIC);
+  cv::Mat current;
+  const cv::Matx23d shift(1, 0, 3.5, 0, 1, -2.25);
+  cv::warpAffine(previous, current, shift, previous.size(), cv::INTER_LINEAR,
+                 cv::BORDER_REFLECT);
+  std::vector<cv::Point2f> points = {{100, 100}, {200, 150}, {60, 180}, {1, 120}};
+  std::vector<cv::Point2f> back;
+  std::vector<uint8_t> found;
+  TrackPointsBack(SceneFlowOptions{}, current, previous, points, &back, &found);
+  for (size_t i = 0; i < 3; ++i) {
+    ASSERT_TRUE(found[i]) << i;
+    EXPECT_NEAR(back[i].x, points[i].x - 3.5, 0.1) << i;
+    EXPECT_NEAR(back[i].y, points[i].y + 2.25, 0.1) << i;
+  }
+  EXPECT_FALSE(found[3]);  // its correspondence lies outside the previous image
+}
+
+TEST(SegmentsAt, ReadsAReducedSegmentImage) {
+  cv::Mat segments(120, 160, CV_32S, cv::Scalar(-1));
+  segments(cv::Rect(40, 30, 20, 10)).setTo(7);
+  const std::vector<int> ids =
+      SegmentsAt(segments, cv::Size(640, 480), {{170, 125}, {239, 159}, {241, 125}, {5, 5}});
+  EXPECT_EQ(ids, (std::vector<int>{7, 7, -1, -1}));
+  EXPECT_EQ(SegmentsAt(cv::Mat(), cv::Size(640, 480), {{1, 1}}), std::vector<int>{-1});
+}
+
+TEST(SceneFlowOptions, CheckRejectsNonsense) {
+  SceneFlowOptions o;
+  EXPECT_NO_THROW(o.Check());
+  o.segment_ratio = 1.5;
+  EXPECT_THROW(o.Check(), std::exception);
+  o = SceneFlowOptions{};
+  o.track_window = 20;
+  EXPECT_THROW(o.Check(), std::exception);
+  o = SceneFlowOptions{};
+  o.frame_gap = 0;
+  EXPECT_THROW(o.Check(), std::exception);
+}
+
+}  // namespace
+}  // namespace sdoslam
