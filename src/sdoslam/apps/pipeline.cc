@@ -95,7 +95,8 @@ RunSummary RunOnDataset(const RunOptions& run) {
   System slam(run.camera, run.slam);
   std::string log =
       "index,timestamp,state,features,features_with_depth,dynamic_features,matches,inliers,"
-      "keyframe,check_iterations,check_converged,check_measured,check_dynamic,culled_points,"
+      "keyframe,check_iterations,check_converged,check_reverted,check_measured,check_dynamic,"
+      "culled_points,"
       "front_end_ms,segment_ms,detect_ms,flow_ms,classify_ms,features_ms,tracking_ms,mapping_ms\n";
   std::string feature_log = "index,x,y,label\n";
   std::vector<double> frame_ms, front_end_ms, mapping_ms;
@@ -117,9 +118,8 @@ RunSummary RunOnDataset(const RunOptions& run) {
       labels = LoadOracleLabels(run.dataset, rgb_paths[i], image_size);
     }
     FrameTiming timing;
-    const TrackingResult r =
-        slam.TrackRgbd(i, frame.timestamp, frame.bgr, frame.depth, &timing, labels, segments,
-                       locked_segments);
+    const TrackingResult r = slam.TrackRgbd(i, frame.timestamp, frame.bgr, frame.depth, &timing,
+                                            labels, segments, locked_segments);
     if (r.state == TrackingState::kNotInitialized) {
       best_depth_features = std::max(best_depth_features, r.features_with_depth);
       if (++summary.not_initialized >= 30 && slam.map().keyframes().empty()) {
@@ -135,13 +135,14 @@ RunSummary RunOnDataset(const RunOptions& run) {
     const int dynamic_features = static_cast<int>(std::count_if(
         r.feature_labels.begin(), r.feature_labels.end(), [](uint8_t l) { return l != 0; }));
     log += fmt::format(
-        "{},{:.6f},{},{},{},{},{},{},{},{},{},{},{},{},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},"
+        "{},{:.6f},{},{},{},{},{},{},{},{},{},{},{},{},{},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f}"
+        ","
         "{:.2f},{:.2f}\n",
         i, r.timestamp, ToString(r.state), r.features, r.features_with_depth, dynamic_features,
         r.matches, r.inliers, r.keyframe ? 1 : 0, r.check_iterations, r.check_converged ? 1 : 0,
-        r.check_measured, r.check_dynamic, r.culled_points, front_timing.total(), front_timing.segment_ms,
-        front_timing.detect_ms, front_timing.flow_ms, front_timing.classify_ms, timing.features_ms,
-        timing.tracking_ms, timing.mapping_ms);
+        r.check_reverted ? 1 : 0, r.check_measured, r.check_dynamic, r.culled_points,
+        front_timing.total(), front_timing.segment_ms, front_timing.detect_ms, front_timing.flow_ms,
+        front_timing.classify_ms, timing.features_ms, timing.tracking_ms, timing.mapping_ms);
     if (!labels.empty() && mask_evaluator) {
       mask_evaluator->AddFrame(rgb_paths[i], labels, r.feature_points, r.feature_labels);
     }
@@ -165,6 +166,7 @@ RunSummary RunOnDataset(const RunOptions& run) {
     }
     spdlog::debug("frame {} {} inliers {} keyframe {}", i, ToString(r.state), r.inliers,
                   r.keyframe);
+    if (run.after_frame) run.after_frame(r, slam);
   }
   slam.Shutdown();  // the mapping thread finishes the queued keyframes
   summary.trajectory = slam.CameraTrajectory();

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 
@@ -33,6 +34,9 @@ struct RunOptions {
   size_t max_frames = 0;       // 0: all
   bool save_overlays = false;  // out/overlays/<rgb name>.png
   bool save_masks = false;     // out/masks/<rgb name>.png (label image) and out/features.csv
+  // Called after each frame is tracked, e.g. to look at the map as it grows (with a mapping
+  // thread, the map may be changing: read it under your own care, or run sequentially).
+  std::function<void(const TrackingResult& result, const System& slam)> after_frame;
 };
 
 struct RunSummary {

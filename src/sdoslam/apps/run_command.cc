@@ -72,9 +72,10 @@ void AddRunCommand(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("run", "RGB-D SLAM on a sequence in the TUM layout");
   cmd->add_option("--dataset", args->dataset, "sequence folder (rgb.txt, depth.txt, rgb/, depth/)")
       ->required();
-  cmd->add_option("--config", args->config,
-                  "config YAML: camera: and optional orb:, rgbd:, tracking:, consistency:, mapping:, "
-                  "dynamic:")
+  cmd->add_option(
+         "--config", args->config,
+         "config YAML: camera: and optional orb:, rgbd:, tracking:, consistency:, mapping:, "
+         "dynamic:")
       ->required();
   cmd->add_option("--out", args->out, "output folder")->required();
   cmd->add_option("--associations", args->associations, "explicit rgb/depth association file");

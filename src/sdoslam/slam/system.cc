@@ -171,7 +171,6 @@ TrackingResult System::TrackRgbd(size_t index, double timestamp, const cv::Mat& 
     consistency.emplace();
     cv::cvtColor(bgr, consistency->gray, cv::COLOR_BGR2GRAY);
     consistency->depth = depth;
-    consistency->labels = dynamic_labels;
     consistency->segments = segments;
     consistency->locked_segments = locked_segments;
   }

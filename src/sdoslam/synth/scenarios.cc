@@ -229,6 +229,33 @@ SceneObject CarriedBox(uint16_t id, CameraMotion motion, double duration) {
   return object;
 }
 
+// A box carried alongside the camera at distance `near` in front of a background `far` away,
+// following the camera's displacement scaled by 1 − near/far: its image motion then matches
+// the background's, so its outline leaves no optical-flow gradient, yet it moves in the world.
+SceneObject AlongsideBox(uint16_t id, CameraMotion motion, double duration, const Vector3d& start,
+                         double near, double far) {
+  const double follow = 1.0 - near / far;
+  auto pose = [=](double t) {
+    const Vector3d shift = CameraPoseAt(motion, t, duration).translation() -
+                           CameraPoseAt(motion, 0, duration).translation();
+    return Pose(start + follow * shift, Rz(0.3));
+  };
+  SceneObject object;
+  object.id = id;
+  object.name = "alongside_box";
+  object.pose_at = pose;
+  object.parts_at = [=](double t) {
+    Primitive box;
+    box.T_world_primitive = pose(t);
+    box.half_size = Vector3d(0.17, 0.14, 0.15);
+    box.base_colour = Vector3f(0.35f, 0.55f, 0.75f);
+    box.texture_seed = 4100u + id;
+    box.T_world_texture = box.T_world_primitive;
+    return std::vector<Primitive>{box};
+  };
+  return object;
+}
+
 std::vector<SceneObject> TwoWalkers() {
   return {Person(1, "person_1", {-1.3, -0.9, 0}, {1.1, -0.7, 0}, 7.0, 0.0, {0.7f, 0.2f, 0.2f},
                  {0.2f, 0.25f, 0.4f}),
@@ -341,7 +368,9 @@ std::vector<std::string> ScenarioNames() {
           "boxes_translational",
           "boxes_unconstrained",
           "mixed",
-          "loop"};
+          "loop",
+          "box_alongside",
+          "parked_cart"};
 }
 
 Scenario MakeScenario(const std::string& name, double duration,
@@ -370,12 +399,26 @@ Scenario MakeScenario(const std::string& name, double duration,
     s.description = "a closed camera loop past a walking person";
     s.motion = CameraMotion::kLoop;
     s.scene.objects = {TwoWalkers()[0]};
+  } else if (name == "box_alongside") {
+    s.description =
+        "a box carried alongside the camera, its image motion matching the background's: no "
+        "flow boundary, only scene flow shows it";
+    s.motion = CameraMotion::kXyz;
+  } else if (name == "parked_cart") {
+    s.description = "a cart parked for two seconds, then pushed away across the floor";
+    s.motion = CameraMotion::kXyz;
+    s.scene.objects = {SlidingBox(31, "cart", {-0.5, 0.6, 0}, {1.1, 0.6, 0}, 6.0, 0.0,
+                                  {0.7, 0.5, 0.6}, {0.75f, 0.45f, 0.3f}, 2.0)};
   } else {
     std::string names;
     for (const auto& n : ScenarioNames()) names += (names.empty() ? "" : ", ") + n;
     throw Error("unknown scenario '" + name + "' (known: " + names + ")");
   }
   if (motion) s.motion = *motion;
+  if (name == "box_alongside") {
+    // 1.7 m ahead of the camera, above the desks, with the board and far wall about 5.7 m away.
+    s.scene.objects = {AlongsideBox(41, s.motion, duration, {-0.25, -0.6, 1.45}, 1.7, 5.7)};
+  }
   if (name == "mixed") {
     auto boxes = SwingingBoxes();
     s.scene.objects = {TwoWalkers()[0], boxes[0], boxes[1], CarriedBox(21, s.motion, duration)};

@@ -27,7 +27,8 @@ struct Scenario {
 };
 
 // The named scenarios: static_room, walking_static, walking_xyz, walking_rpy,
-// walking_halfsphere, boxes_translational, boxes_unconstrained, mixed, loop.
+// walking_halfsphere, boxes_translational, boxes_unconstrained, mixed, loop, box_alongside,
+// parked_cart.
 std::vector<std::string> ScenarioNames();
 
 // Builds scenario `name` for a sequence of `duration` seconds; `motion` overrides its camera

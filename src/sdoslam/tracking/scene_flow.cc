@@ -24,9 +24,10 @@ void SceneFlowOptions::Check() const {
   if (track_levels < 0 || track_levels > 6)
     throw Error("consistency.track_levels must be in [0, 6]");
   if (!(max_track_error > 0)) throw Error("consistency.max_track_error must be positive");
+  if (!(max_round_trip_px > 0)) throw Error("consistency.max_round_trip_px must be positive");
   if (cull_after < 1) throw Error("consistency.cull_after must be >= 1");
-  if (free_space_radius < 0 || free_space_radius > 10)
-    throw Error("consistency.free_space_radius must be in [0, 10]");
+  if (depth_window_radius < 0 || depth_window_radius > 10)
+    throw Error("consistency.depth_window_radius must be in [0, 10]");
 }
 
 double DepthNoiseSigma(const SceneFlowOptions& o, double depth) {
@@ -91,11 +92,54 @@ void TrackPointsBack(const SceneFlowOptions& o, const cv::Mat& current_gray,
       cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.03));
   const float max_x = static_cast<float>(previous_gray.cols - 1);
   const float max_y = static_cast<float>(previous_gray.rows - 1);
+  std::vector<size_t> kept;
+  std::vector<cv::Point2f> starts;
   for (size_t i = 0; i < points.size(); ++i) {
     const cv::Point2f& p = (*previous_points)[i];
-    if (!(error[i] <= o.max_track_error) || p.x < 0 || p.y < 0 || p.x > max_x || p.y > max_y)
+    if (!(error[i] <= o.max_track_error) || p.x < 0 || p.y < 0 || p.x > max_x || p.y > max_y) {
       (*found)[i] = 0;
+    } else if ((*found)[i]) {
+      kept.push_back(i);
+      starts.push_back(p);
+    }
   }
+  if (kept.empty()) return;
+  std::vector<cv::Point2f> returned;
+  for (size_t i : kept) returned.push_back(points[i]);  // initial guess: where they started
+  std::vector<uint8_t> returned_found;
+  cv::calcOpticalFlowPyrLK(
+      previous_gray, current_gray, starts, returned, returned_found, error,
+      cv::Size(o.track_window, o.track_window), o.track_levels,
+      cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.03),
+      cv::OPTFLOW_USE_INITIAL_FLOW);
+  for (size_t k = 0; k < kept.size(); ++k) {
+    const cv::Point2f miss = returned[k] - points[kept[k]];
+    if (!returned_found[k] || miss.dot(miss) > o.max_round_trip_px * o.max_round_trip_px)
+      (*found)[kept[k]] = 0;
+  }
+}
+
+std::vector<float> DepthCandidates(const cv::Mat& depth, cv::Point2f pixel, int radius) {
+  CV_Assert(depth.type() == CV_32FC1);
+  const int u = static_cast<int>(std::lround(pixel.x)), v = static_cast<int>(std::lround(pixel.y));
+  std::vector<float> out;
+  if (u < 0 || v < 0 || u >= depth.cols || v >= depth.rows) return out;
+  float nearest = 0, farthest = 0;
+  for (int y = std::max(0, v - radius); y <= std::min(depth.rows - 1, v + radius); ++y) {
+    const float* row = depth.ptr<float>(y);
+    for (int x = std::max(0, u - radius); x <= std::min(depth.cols - 1, u + radius); ++x) {
+      if (!(row[x] > 0)) continue;
+      if (nearest == 0 || row[x] < nearest) nearest = row[x];
+      farthest = std::max(farthest, row[x]);
+    }
+  }
+  if (nearest == 0) return out;
+  const float centre = depth.at<float>(v, u);
+  if (centre > 0) out.push_back(centre);
+  for (float d : {nearest, farthest}) {
+    if (std::find(out.begin(), out.end(), d) == out.end()) out.push_back(d);
+  }
+  return out;
 }
 
 std::vector<int> SegmentsAt(const cv::Mat& segment_image, cv::Size image_size,

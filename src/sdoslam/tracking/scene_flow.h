@@ -36,11 +36,19 @@ struct SceneFlowOptions {
   int track_window = 21;
   int track_levels = 3;
   double max_track_error = 20.0;
-  // Map hygiene: a landmark judged inconsistent this many frames in a row (moved away: the
-  // depth image sees through where it should be; or it lies on a dynamic region; or its feature
-  // has large scene flow) is culled from the map.
+  // ... and one that, tracked forward again, misses its start by more than this (px): dark or
+  // repetitive texture and occlusions make Lucas–Kanade slip, and a slipped correspondence looks
+  // exactly like motion.
+  double max_round_trip_px = 0.5;
+  // Map hygiene: a landmark judged inconsistent this many times without a consistent match in
+  // between (its feature has large scene flow, or it has moved away: the depth image sees
+  // through where it should be) is culled from the map.
   int cull_after = 3;
-  int free_space_radius = 2;  // px: depth window around a landmark's projection
+  // px: depth window around a feature, its correspondence and a landmark's projection. Corners
+  // often sit on depth edges, where one pixel off reads the other surface: a feature only counts
+  // as moving when no depth of its windows (nearest, nearest surface, farthest surface) explains
+  // it as static, and a landmark is only seen through when its whole window lies behind it.
+  int depth_window_radius = 2;
   void Check() const;
 
   // Calls visit(key, member) for every setting: one list of config keys for reading and writing.
@@ -59,8 +67,9 @@ struct SceneFlowOptions {
     visit("track_window", o.track_window);
     visit("track_levels", o.track_levels);
     visit("max_track_error", o.max_track_error);
+    visit("max_round_trip_px", o.max_round_trip_px);
     visit("cull_after", o.cull_after);
-    visit("free_space_radius", o.free_space_radius);
+    visit("depth_window_radius", o.depth_window_radius);
   }
 };
 
@@ -71,8 +80,7 @@ double DepthNoiseSigma(const SceneFlowOptions& options, double depth);
 // `camera_centre` by a camera of focal length `focal_px`, exceeds the noise thresholds.
 bool ExceedsSceneFlowThreshold(const SceneFlowOptions& options, const Eigen::Vector3d& flow_world,
                                const Eigen::Vector3d& point_world,
-                               const Eigen::Vector3d& camera_centre, double depth,
-                               double focal_px);
+                               const Eigen::Vector3d& camera_centre, double depth, double focal_px);
 
 // Segment re-evaluation. Inputs per feature: whether its scene flow was measured and exceeded
 // the threshold, and its segment (−1: none). `locked_segments`: segments that are dynamic
@@ -86,10 +94,15 @@ std::vector<uint8_t> ClassifyBySceneFlow(const SceneFlowOptions& options,
                                          const std::vector<uint8_t>& locked_segments);
 
 // Follows `points` (pixels of `current_gray`) back into `previous_gray` with pyramidal
-// Lucas–Kanade. `found[i]` is 0 where tracking failed or its error exceeded the options' limit.
+// Lucas–Kanade. `found[i]` is 0 where tracking failed, its error exceeded the options' limit, or
+// the round trip (back, then forward again) does not return to the point.
 void TrackPointsBack(const SceneFlowOptions& options, const cv::Mat& current_gray,
                      const cv::Mat& previous_gray, const std::vector<cv::Point2f>& points,
                      std::vector<cv::Point2f>* previous_points, std::vector<uint8_t>* found);
+
+// The depths a pixel may have: the one at `pixel` (rounded) and the nearest and farthest valid
+// depths within `radius`, without repeats; empty when the window has no valid depth.
+std::vector<float> DepthCandidates(const cv::Mat& depth, cv::Point2f pixel, int radius);
 
 // Segment id at each point, from a segment image (CV_32S, any size of the image's aspect).
 std::vector<int> SegmentsAt(const cv::Mat& segment_image, cv::Size image_size,

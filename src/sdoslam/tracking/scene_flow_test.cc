@@ -83,8 +83,7 @@ TEST(TrackPointsBack, RecoversAKnownShift) {
   cv::resize(noise, previous, previous.size(), 0, 0, cv::INTER_CUBIC);
   cv::Mat current;
   const cv::Matx23d shift(1, 0, 3.5, 0, 1, -2.25);
-  cv::warpAffine(previous, current, shift, previous.size(), cv::INTER_LINEAR,
-                 cv::BORDER_REFLECT);
+  cv::warpAffine(previous, current, shift, previous.size(), cv::INTER_LINEAR, cv::BORDER_REFLECT);
   std::vector<cv::Point2f> points = {{100, 100}, {200, 150}, {60, 180}, {1, 120}};
   std::vector<cv::Point2f> back;
   std::vector<uint8_t> found;

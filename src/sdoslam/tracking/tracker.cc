@@ -370,21 +370,27 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
   const std::vector<cv::Point2f> past_undistorted = camera.UndistortPoints(past_points);
   const Eigen::Isometry3d T_world_past = past->T_camera_world.inverse();
   const size_t n = candidates.size();
+  // Per measured feature, each end as a ray (world) and the depths it may have along it.
+  struct Ends {
+    Eigen::Vector3d past_origin, past_direction, current_direction;
+    std::vector<float> past_depths, current_depths;
+  };
   std::vector<uint8_t> measured(n, 0);
-  std::vector<Eigen::Vector3d> past_world(n), current_camera(n);
+  std::vector<Ends> ends(n);
+  const int r = o.depth_window_radius;
   for (size_t t = 0; t < tracked_points.size(); ++t) {
     if (!found[t]) continue;
-    const int u = static_cast<int>(std::lround(past_points[t].x));
-    const int v = static_cast<int>(std::lround(past_points[t].y));
-    const float d = past->depth.at<float>(v, u);
-    if (!(d > 0)) continue;
     const size_t slot = tracked_slot[t];
     const size_t i = static_cast<size_t>(candidates[slot]);
+    Ends& e = ends[slot];
+    e.past_depths = DepthCandidates(past->depth, past_points[t], r);
+    e.current_depths = DepthCandidates(input.depth, frame.keypoints[i].pt, r);
+    if (e.past_depths.empty() || e.current_depths.empty()) continue;
     measured[slot] = 1;
-    past_world[slot] =
-        T_world_past * camera.Unproject({past_undistorted[t].x, past_undistorted[t].y}, d);
-    current_camera[slot] =
-        camera.Unproject({frame.undistorted[i].x, frame.undistorted[i].y}, frame.depth[i]);
+    e.past_origin = T_world_past.translation();
+    e.past_direction =
+        T_world_past.linear() * camera.Unproject({past_undistorted[t].x, past_undistorted[t].y}, 1);
+    e.current_direction = camera.Unproject({frame.undistorted[i].x, frame.undistorted[i].y}, 1);
   }
   std::vector<cv::Point2f> candidate_points;
   for (int i : candidates) candidate_points.push_back(frame.keypoints[static_cast<size_t>(i)].pt);
@@ -393,8 +399,10 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
   result->check_measured = static_cast<int>(std::count(measured.begin(), measured.end(), 1));
 
   // Classify at the rough pose, re-estimate the pose without the dynamic features, and repeat
-  // until the classification stops changing.
+  // until the classification stops changing (a fixed point).
   const std::vector<MapPoint*> matched = frame.map_points;
+  const std::vector<bool> rough_outlier = frame.outlier;
+  const Eigen::Isometry3d rough_pose = frame.T_camera_world;
   std::vector<uint8_t> dynamic(n, 0), exceeds(n, 0);
   for (int iteration = 1; iteration <= o.max_iterations; ++iteration) {
     result->check_iterations = iteration;
@@ -402,12 +410,29 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
     const Eigen::Vector3d centre = T_world_camera.translation();
     for (size_t k = 0; k < n; ++k) {
       if (!measured[k]) continue;
-      const Eigen::Vector3d point = T_world_camera * current_camera[k];
-      exceeds[k] = ExceedsSceneFlowThreshold(o, point - past_world[k], point, centre,
-                                             current_camera[k].z(), frame.geometry->intrinsics.fx);
+      // Moving only when no pair of the ends' depths explains the feature as static.
+      const Ends& e = ends[k];
+      const Eigen::Vector3d direction = T_world_camera.linear() * e.current_direction;
+      bool all_exceed = true;
+      for (float dc : e.current_depths) {
+        const Eigen::Vector3d point = centre + dc * direction;
+        for (float dp : e.past_depths) {
+          const Eigen::Vector3d flow = point - (e.past_origin + dp * e.past_direction);
+          if (!ExceedsSceneFlowThreshold(o, flow, point, centre, dc,
+                                         frame.geometry->intrinsics.fx)) {
+            all_exceed = false;
+            break;
+          }
+        }
+        if (!all_exceed) break;
+      }
+      exceeds[k] = all_exceed;
     }
-    std::vector<uint8_t> next = ClassifyBySceneFlow(o, measured, exceeds, segment,
-                                                    input.locked_segments);
+    std::vector<uint8_t> next =
+        ClassifyBySceneFlow(o, measured, exceeds, segment, input.locked_segments);
+    // A feature once judged dynamic stays so within the frame: the set only grows, so it
+    // settles instead of flipping a borderline feature back and forth.
+    for (size_t k = 0; k < n; ++k) next[k] |= dynamic[k];
     if (next == dynamic) {
       result->check_converged = true;
       break;
@@ -421,6 +446,20 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
     OptimizeAndCount(frame);
   }
 
+  int inliers = 0;
+  for (size_t i = 0; i < frame.size(); ++i) {
+    const MapPoint* p = frame.map_points[i];
+    inliers += p != nullptr && !p->bad && !frame.outlier[i] && !p->observations.empty();
+  }
+  if (inliers < options_.min_inliers) {
+    // Too little would be left to track: keep the rough estimate rather than lose the camera.
+    frame.map_points = matched;
+    frame.outlier = rough_outlier;
+    frame.T_camera_world = rough_pose;
+    result->check_reverted = true;
+    return {};
+  }
+  result->inliers = inliers;
   std::vector<MapPoint*> judged_dynamic;
   for (size_t k = 0; k < n; ++k) {
     if (!dynamic[k]) continue;
@@ -430,18 +469,11 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
     frame.MarkDynamic(i, kSceneFlowLabel);
     ++result->check_dynamic;
   }
-  int inliers = 0;
-  for (size_t i = 0; i < frame.size(); ++i) {
-    const MapPoint* p = frame.map_points[i];
-    inliers += p != nullptr && !p->bad && !frame.outlier[i] && !p->observations.empty();
-  }
-  result->inliers = inliers;
   return judged_dynamic;
 }
 
 void Tracker::CheckLandmarks(const Frame& frame, const ConsistencyInput& input,
-                             const std::vector<MapPoint*>& judged_dynamic,
-                             TrackingResult* result) {
+                             const std::vector<MapPoint*>& judged_dynamic, TrackingResult* result) {
   const SceneFlowOptions& o = options_.consistency;
   const Camera& camera = frame.geometry->camera;
   std::set<const MapPoint*> handled;
@@ -463,9 +495,9 @@ void Tracker::CheckLandmarks(const Frame& frame, const ConsistencyInput& input,
     handled.insert(p);
   }
   // The other local landmarks in view: where the depth image sees through the landmark (a
-  // surface behind it, nothing in front) it has moved away; where it lies on a region the
-  // front end calls dynamic, it moves with it.
-  const int r = o.free_space_radius;
+  // surface behind it, nothing in front) it has moved away. (Lying on a region the front end
+  // calls dynamic is no evidence: those regions reach over the background around people.)
+  const int r = o.depth_window_radius;
   const int width = camera.width(), height = camera.height();
   for (MapPoint* p : local_points_) {
     if (p->bad || handled.count(p) != 0 || p->observations.empty()) continue;
@@ -477,7 +509,7 @@ void Tracker::CheckLandmarks(const Frame& frame, const ConsistencyInput& input,
     if (u < r || v < r || u >= width - r || v >= height - r) continue;
     const double tolerance =
         o.min_flow + o.noise_sigmas * std::sqrt(2.0) * DepthNoiseSigma(o, X.z());
-    int valid = 0, behind = 0, near = 0;
+    int valid = 0, behind = 0;
     for (int y = v - r; y <= v + r; ++y) {
       const float* row = input.depth.ptr<float>(y);
       for (int x = u - r; x <= u + r; ++x) {
@@ -485,14 +517,11 @@ void Tracker::CheckLandmarks(const Frame& frame, const ConsistencyInput& input,
         if (!(d > 0)) continue;
         ++valid;
         behind += d > X.z() + tolerance;
-        near += std::abs(d - X.z()) <= tolerance;
       }
     }
     const int window = (2 * r + 1) * (2 * r + 1);
     const bool seen_through = 2 * valid >= window && behind == valid;
-    const bool on_dynamic =
-        near > 0 && !input.labels.empty() && input.labels.at<uint8_t>(v, u) != 0;
-    if (seen_through || on_dynamic) strike(p);
+    if (seen_through) strike(p);
   }
 }
 

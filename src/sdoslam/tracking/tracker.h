@@ -31,9 +31,8 @@ inline constexpr uint8_t kSceneFlowLabel = 3;
 // What the consistency check needs besides the frame's features: this frame's images and the
 // front end's segmentation.
 struct ConsistencyInput {
-  cv::Mat gray;    // CV_8U, image size
-  cv::Mat depth;   // CV_32F metres, registered to the colour image (0 = none)
-  cv::Mat labels;  // CV_8U front-end labels at image size (0 = static), or empty
+  cv::Mat gray;      // CV_8U, image size
+  cv::Mat depth;     // CV_32F metres, registered to the colour image (0 = none)
   cv::Mat segments;  // CV_32S segment per pixel (−1: none) at any size of the image's aspect
   std::vector<uint8_t> locked_segments;  // per segment: dynamic whatever its scene flow
 };
@@ -55,10 +54,12 @@ struct TrackingResult {
   std::vector<uint8_t> feature_labels;
   std::vector<uint8_t> feature_tracked;
   // Consistency check: classification rounds run (0: not run), whether the static set reached a
-  // fixed point, features whose scene flow was measured, features it judged dynamic, and
-  // landmarks culled from the map as inconsistent.
+  // fixed point, whether its result was dropped (too few inliers left: the rough pose stays),
+  // features whose scene flow was measured, features it judged dynamic, and landmarks culled
+  // from the map as inconsistent.
   int check_iterations = 0;
   bool check_converged = false;
+  bool check_reverted = false;
   int check_measured = 0;
   int check_dynamic = 0;
   int culled_points = 0;
