@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
@@ -34,6 +35,8 @@ RunMode ParseRunMode(const std::string& name) {
 }
 
 namespace {
+
+static_assert(kSceneFlow == kSceneFlowLabel, "the front end and tracking name label 3 alike");
 
 // Ground-truth dynamic masks of a synthetic sequence as a label image.
 cv::Mat LoadOracleLabels(const std::filesystem::path& dataset, const std::filesystem::path& rgb,
@@ -129,6 +132,14 @@ RunSummary RunOnDataset(const RunOptions& run) {
                         run.dataset.string(), summary.not_initialized, best_depth_features,
                         run.slam.tracking.min_initial_depth_features));
       }
+    }
+    if (!r.check_segments.empty()) {
+      // The consistency check's verdict joins the front end's in the masks, overlays and scores.
+      labels = labels.clone();
+      cv::Mat turned(segments.size(), CV_8U, cv::Scalar(0));
+      for (int id : r.check_segments) turned.setTo(255, segments == id);
+      cv::resize(turned, turned, image_size, 0, 0, cv::INTER_NEAREST);
+      labels.setTo(kSceneFlow, turned & (labels == kStatic));
     }
     summary.lost += r.state == TrackingState::kLost;
     frame_ms.push_back(timing.features_ms + timing.tracking_ms);

@@ -15,11 +15,13 @@ struct FrontEndFrame {
   cv::Mat depth;                   // CV_32F metres, 0 = none; may be empty
 };
 
-// Per-pixel and per-feature classes of the front end. Tracking uses kStatic only.
+// Per-pixel and per-feature classes of the front end (and of the consistency check, which runs
+// in tracking). Tracking uses kStatic only.
 enum DynamicLabel : uint8_t {
   kStatic = 0,
   kKnownMovable = 1,   // a movable known class (person, animal, vehicle), moving or not
   kMovingUnknown = 2,  // no known class, selected by motion
+  kSceneFlow = 3,      // judged moving by tracking's scene-flow consistency check
 };
 const char* ToString(DynamicLabel label);
 

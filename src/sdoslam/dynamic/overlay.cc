@@ -10,13 +10,15 @@ cv::Mat DrawOverlay(const cv::Mat& bgr, const cv::Mat& labels, const SdoResult* 
                     const std::vector<cv::Point2f>& features,
                     const std::vector<uint8_t>& feature_labels) {
   cv::Mat out = bgr.clone();
-  const cv::Vec3b known(0, 140, 255), unknown(255, 0, 255);
+  const cv::Vec3b known(0, 140, 255), unknown(255, 0, 255), scene_flow(255, 80, 0);
   for (int y = 0; y < out.rows; ++y) {
     const uint8_t* l = labels.ptr<uint8_t>(y);
     cv::Vec3b* p = out.ptr<cv::Vec3b>(y);
     for (int x = 0; x < out.cols; ++x) {
       if (l[x] == kStatic) continue;
-      const cv::Vec3b& tint = l[x] == kKnownMovable ? known : unknown;
+      const cv::Vec3b& tint = l[x] == kKnownMovable ? known
+                              : l[x] == kSceneFlow  ? scene_flow
+                                                    : unknown;
       for (int c = 0; c < 3; ++c) p[x][c] = static_cast<uint8_t>((p[x][c] + tint[c]) / 2);
     }
   }

@@ -21,6 +21,8 @@ const char* ToString(DynamicLabel label) {
       return "known-movable";
     case kMovingUnknown:
       return "moving-unknown";
+    case kSceneFlow:
+      return "scene-flow";
   }
   return "?";
 }

@@ -52,7 +52,8 @@ std::vector<uint8_t> ClassifyBySceneFlow(const SceneFlowOptions& o,
                                          const std::vector<uint8_t>& measured,
                                          const std::vector<uint8_t>& exceeds,
                                          const std::vector<int>& segment,
-                                         const std::vector<uint8_t>& locked_segments) {
+                                         const std::vector<uint8_t>& locked_segments,
+                                         std::vector<uint8_t>* segment_dynamic_out) {
   const size_t n = measured.size();
   CV_Assert(exceeds.size() == n && segment.size() == n);
   int segments = static_cast<int>(locked_segments.size());
@@ -76,6 +77,7 @@ std::vector<uint8_t> ClassifyBySceneFlow(const SceneFlowOptions& o,
     dynamic[i] = (measured[i] && exceeds[i]) ||
                  (segment[i] >= 0 && segment_dynamic[static_cast<size_t>(segment[i])]);
   }
+  if (segment_dynamic_out != nullptr) *segment_dynamic_out = std::move(segment_dynamic);
   return dynamic;
 }
 

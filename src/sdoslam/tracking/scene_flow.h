@@ -43,7 +43,7 @@ struct SceneFlowOptions {
   // Map hygiene: a landmark judged inconsistent this many times without a consistent match in
   // between (its feature has large scene flow, or it has moved away: the depth image sees
   // through where it should be) is culled from the map.
-  int cull_after = 3;
+  int cull_after = 5;
   // px: depth window around a feature, its correspondence and a landmark's projection. Corners
   // often sit on depth edges, where one pixel off reads the other surface: a feature only counts
   // as moving when no depth of its windows (nearest, nearest surface, farthest surface) explains
@@ -87,11 +87,13 @@ bool ExceedsSceneFlowThreshold(const SceneFlowOptions& options, const Eigen::Vec
 // whatever their count (movable known classes). Returns per feature whether it is dynamic:
 // exceeding features on their own, and every feature of a segment in which more than
 // `segment_ratio` of at least `min_segment_features` measured features exceed.
+// `segment_dynamic` (optional) receives the verdict per segment.
 std::vector<uint8_t> ClassifyBySceneFlow(const SceneFlowOptions& options,
                                          const std::vector<uint8_t>& measured,
                                          const std::vector<uint8_t>& exceeds,
                                          const std::vector<int>& segment,
-                                         const std::vector<uint8_t>& locked_segments);
+                                         const std::vector<uint8_t>& locked_segments,
+                                         std::vector<uint8_t>* segment_dynamic = nullptr);
 
 // Follows `points` (pixels of `current_gray`) back into `previous_gray` with pyramidal
 // Lucas–Kanade. `found[i]` is 0 where tracking failed, its error exceeded the options' limit, or

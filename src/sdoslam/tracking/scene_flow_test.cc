@@ -94,6 +94,30 @@ TEST(TrackPointsBack, RecoversAKnownShift) {
     EXPECT_NEAR(back[i].y, points[i].y + 2.25, 0.1) << i;
   }
   EXPECT_FALSE(found[3]);  // its correspondence lies outside the previous image
+
+  // Something else now covers the neighbourhood of a point (an occluder): no correspondence.
+  cv::Mat other;
+  cv::resize(noise.t(), other, cv::Size(60, 60), 0, 0, cv::INTER_CUBIC);
+  other.copyTo(current(cv::Rect(170, 120, 60, 60)));
+  TrackPointsBack(SceneFlowOptions{}, current, previous, {{200, 150}, {100, 100}}, &back, &found);
+  EXPECT_FALSE(found[0]);
+  EXPECT_TRUE(found[1]);
+}
+
+TEST(DepthCandidates, OffersBothSurfacesOfADepthEdge) {
+  cv::Mat depth(20, 20, CV_32F, cv::Scalar(3.0f));
+  depth(cv::Rect(0, 0, 10, 20)).setTo(1.2f);  // a near surface on the left half
+  depth.at<float>(5, 14) = 0;                 // a hole
+  // On the edge: the pixel's own depth first, then the nearest and farthest of the window.
+  EXPECT_EQ(DepthCandidates(depth, {9.4f, 10.f}, 2), (std::vector<float>{1.2f, 3.0f}));
+  EXPECT_EQ(DepthCandidates(depth, {10.6f, 10.f}, 2), (std::vector<float>{3.0f, 1.2f}));
+  // Away from the edge there is one surface; radius 0 reads the pixel alone.
+  EXPECT_EQ(DepthCandidates(depth, {16.f, 10.f}, 2), std::vector<float>{3.0f});
+  EXPECT_EQ(DepthCandidates(depth, {10.f, 10.f}, 0), std::vector<float>{3.0f});
+  // A hole at the pixel: the window still gives the surface; outside the image: nothing.
+  EXPECT_EQ(DepthCandidates(depth, {14.f, 5.f}, 1), std::vector<float>{3.0f});
+  EXPECT_TRUE(DepthCandidates(depth, {14.f, 5.f}, 0).empty());
+  EXPECT_TRUE(DepthCandidates(depth, {-3.f, 5.f}, 2).empty());
 }
 
 TEST(SegmentsAt, ReadsAReducedSegmentImage) {

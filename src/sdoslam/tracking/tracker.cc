@@ -403,7 +403,7 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
   const std::vector<MapPoint*> matched = frame.map_points;
   const std::vector<bool> rough_outlier = frame.outlier;
   const Eigen::Isometry3d rough_pose = frame.T_camera_world;
-  std::vector<uint8_t> dynamic(n, 0), exceeds(n, 0);
+  std::vector<uint8_t> dynamic(n, 0), exceeds(n, 0), segment_dynamic;
   for (int iteration = 1; iteration <= o.max_iterations; ++iteration) {
     result->check_iterations = iteration;
     const Eigen::Isometry3d T_world_camera = frame.T_camera_world.inverse();
@@ -428,8 +428,11 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
       }
       exceeds[k] = all_exceed;
     }
+    std::vector<uint8_t> segments_now;
     std::vector<uint8_t> next =
-        ClassifyBySceneFlow(o, measured, exceeds, segment, input.locked_segments);
+        ClassifyBySceneFlow(o, measured, exceeds, segment, input.locked_segments, &segments_now);
+    segment_dynamic.resize(std::max(segment_dynamic.size(), segments_now.size()), 0);
+    for (size_t s = 0; s < segments_now.size(); ++s) segment_dynamic[s] |= segments_now[s];
     // A feature once judged dynamic stays so within the frame: the set only grows, so it
     // settles instead of flipping a borderline feature back and forth.
     for (size_t k = 0; k < n; ++k) next[k] |= dynamic[k];
@@ -460,6 +463,10 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
     return {};
   }
   result->inliers = inliers;
+  for (size_t s = 0; s < segment_dynamic.size(); ++s) {
+    const bool locked = s < input.locked_segments.size() && input.locked_segments[s] != 0;
+    if (segment_dynamic[s] && !locked) result->check_segments.push_back(static_cast<int>(s));
+  }
   std::vector<MapPoint*> judged_dynamic;
   for (size_t k = 0; k < n; ++k) {
     if (!dynamic[k]) continue;

@@ -63,6 +63,8 @@ struct TrackingResult {
   int check_measured = 0;
   int check_dynamic = 0;
   int culled_points = 0;
+  // Segments (ids of ConsistencyInput::segments) the check turned dynamic as a whole.
+  std::vector<int> check_segments;
 };
 
 // Frame-to-map tracking of ORB-SLAM2 (RGB-D): constant-velocity prediction and projection
