@@ -99,8 +99,8 @@ RunSummary RunOnDataset(const RunOptions& run) {
   std::string log =
       "index,timestamp,state,features,features_with_depth,dynamic_features,matches,inliers,"
       "keyframe,check_iterations,check_converged,check_reverted,check_measured,check_dynamic,"
-      "culled_points,"
-      "front_end_ms,segment_ms,detect_ms,flow_ms,classify_ms,features_ms,tracking_ms,mapping_ms\n";
+      "culled_points,front_end_ms,segment_ms,detect_ms,flow_ms,classify_ms,features_ms,"
+      "tracking_ms,mapping_ms\n";
   std::string feature_log = "index,x,y,label\n";
   std::vector<double> frame_ms, front_end_ms, mapping_ms;
   int best_depth_features = 0;
@@ -146,9 +146,8 @@ RunSummary RunOnDataset(const RunOptions& run) {
     const int dynamic_features = static_cast<int>(std::count_if(
         r.feature_labels.begin(), r.feature_labels.end(), [](uint8_t l) { return l != 0; }));
     log += fmt::format(
-        "{},{:.6f},{},{},{},{},{},{},{},{},{},{},{},{},{},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f}"
-        ","
-        "{:.2f},{:.2f}\n",
+        "{},{:.6f},{},{},{},{},{},{},{},{},{},{},{},{},{},"
+        "{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f}\n",
         i, r.timestamp, ToString(r.state), r.features, r.features_with_depth, dynamic_features,
         r.matches, r.inliers, r.keyframe ? 1 : 0, r.check_iterations, r.check_converged ? 1 : 0,
         r.check_reverted ? 1 : 0, r.check_measured, r.check_dynamic, r.culled_points,

@@ -25,7 +25,7 @@ class MapPoint {
   double min_distance = 0, max_distance = 0;                   // scale-invariance range
   std::map<uint64_t, std::pair<KeyFrame*, int>> observations;  // keyframe id -> (kf, feature)
   int visible = 1, found = 1;  // times predicted in view / matched by tracking
-  int inconsistent = 0;        // frames in a row judged to have moved (consistency check)
+  int inconsistent = 0;  // times judged moved since its last consistent match (consistency check)
   bool bad = false;
   MapPoint* replaced_by = nullptr;
   uint64_t last_seen_frame = static_cast<uint64_t>(-1);  // bookkeeping for local-map search

@@ -160,9 +160,10 @@ TrackingResult System::TrackRgbd(size_t index, double timestamp, const cv::Mat& 
     throw Error("frame " + std::to_string(index) +
                 ": the dynamic label image is not 8-bit single-channel of the frame's size");
   }
-  if (!segments.empty() && (segments.type() != CV_32SC1 || segments.cols > bgr.cols)) {
+  if (!segments.empty() &&
+      (segments.type() != CV_32SC1 || segments.cols > bgr.cols || segments.rows > bgr.rows)) {
     throw Error("frame " + std::to_string(index) +
-                ": the segment image is not 32-bit single-channel at most the frame's size");
+                ": the segment image is not 32-bit single-channel of at most the frame's size");
   }
   Frame frame(index, timestamp, bgr, depth, geometry_, extractor_);
   if (!dynamic_labels.empty()) frame.SetLabels(dynamic_labels);

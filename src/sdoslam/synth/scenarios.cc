@@ -1,6 +1,7 @@
 #include "sdoslam/synth/scenarios.h"
 
 #include <cmath>
+#include <functional>
 
 #include "sdoslam/core/error.h"
 
@@ -179,6 +180,25 @@ SceneObject Pendulum(uint16_t id, const std::string& name, const Vector3d& pivot
   return object;
 }
 
+// A rigid textured box moving along `pose` (its centre and orientation at time t).
+SceneObject RigidBox(uint16_t id, const std::string& name, std::function<Isometry3d(double)> pose,
+                     const Vector3d& half_size, const Vector3f& colour, uint32_t texture_seed) {
+  SceneObject object;
+  object.id = id;
+  object.name = name;
+  object.pose_at = pose;
+  object.parts_at = [=](double t) {
+    Primitive box;
+    box.T_world_primitive = pose(t);
+    box.half_size = half_size;
+    box.base_colour = colour;
+    box.texture_seed = texture_seed;
+    box.T_world_texture = box.T_world_primitive;
+    return std::vector<Primitive>{box};
+  };
+  return object;
+}
+
 // A box sliding back and forth on the floor while spinning about its vertical axis.
 SceneObject SlidingBox(uint16_t id, const std::string& name, const Vector3d& a, const Vector3d& b,
                        double period, double spin, const Vector3d& size, const Vector3f& colour,
@@ -188,20 +208,7 @@ SceneObject SlidingBox(uint16_t id, const std::string& name, const Vector3d& a, 
     const Shuttle s = BackAndForth(tau, period, 0.0);
     return Pose(a + s.fraction * (b - a) + Vector3d(0, 0, 0.5 * size.z()), Rz(spin * tau));
   };
-  SceneObject object;
-  object.id = id;
-  object.name = name;
-  object.pose_at = pose;
-  object.parts_at = [=](double t) {
-    Primitive box;
-    box.T_world_primitive = pose(t);
-    box.half_size = 0.5 * size;
-    box.base_colour = colour;
-    box.texture_seed = 3000u + id;
-    box.T_world_texture = box.T_world_primitive;
-    return std::vector<Primitive>{box};
-  };
-  return object;
+  return RigidBox(id, name, pose, 0.5 * size, colour, 3000u + id);
 }
 
 // A box carried in front of the camera: nearly still in the image, the hardest case for RANSAC.
@@ -213,20 +220,8 @@ SceneObject CarriedBox(uint16_t id, CameraMotion motion, double duration) {
     // Camera frame: right, down, forward. Lower left, 1.1 m ahead.
     return CameraPoseAt(motion, t, duration) * Pose(Vector3d(-0.35, 0.22, 1.1)) * wobble;
   };
-  SceneObject object;
-  object.id = id;
-  object.name = "carried_box";
-  object.pose_at = pose;
-  object.parts_at = [=](double t) {
-    Primitive box;
-    box.T_world_primitive = pose(t);
-    box.half_size = Vector3d(0.16, 0.12, 0.14);
-    box.base_colour = Vector3f(0.75f, 0.6f, 0.3f);
-    box.texture_seed = 4000u + id;
-    box.T_world_texture = box.T_world_primitive;
-    return std::vector<Primitive>{box};
-  };
-  return object;
+  return RigidBox(id, "carried_box", pose, Vector3d(0.16, 0.12, 0.14), Vector3f(0.75f, 0.6f, 0.3f),
+                  4000u + id);
 }
 
 // A box carried alongside the camera at distance `near` in front of a background `far` away,
@@ -240,20 +235,8 @@ SceneObject AlongsideBox(uint16_t id, CameraMotion motion, double duration, cons
                            CameraPoseAt(motion, 0, duration).translation();
     return Pose(start + follow * shift, Rz(0.3));
   };
-  SceneObject object;
-  object.id = id;
-  object.name = "alongside_box";
-  object.pose_at = pose;
-  object.parts_at = [=](double t) {
-    Primitive box;
-    box.T_world_primitive = pose(t);
-    box.half_size = Vector3d(0.17, 0.14, 0.15);
-    box.base_colour = Vector3f(0.35f, 0.55f, 0.75f);
-    box.texture_seed = 4100u + id;
-    box.T_world_texture = box.T_world_primitive;
-    return std::vector<Primitive>{box};
-  };
-  return object;
+  return RigidBox(id, "alongside_box", pose, Vector3d(0.17, 0.14, 0.15),
+                  Vector3f(0.35f, 0.55f, 0.75f), 4100u + id);
 }
 
 std::vector<SceneObject> TwoWalkers() {

@@ -35,6 +35,10 @@ double DepthNoiseSigma(const SceneFlowOptions& o, double depth) {
   return o.depth_noise_a + o.depth_noise_b * d * d;
 }
 
+double AlongRayLimit(const SceneFlowOptions& o, double depth) {
+  return o.min_flow + o.noise_sigmas * std::sqrt(2.0) * DepthNoiseSigma(o, depth);
+}
+
 bool ExceedsSceneFlowThreshold(const SceneFlowOptions& o, const Eigen::Vector3d& flow_world,
                                const Eigen::Vector3d& point_world,
                                const Eigen::Vector3d& camera_centre, double depth,
@@ -42,10 +46,9 @@ bool ExceedsSceneFlowThreshold(const SceneFlowOptions& o, const Eigen::Vector3d&
   const Eigen::Vector3d ray = (point_world - camera_centre).normalized();
   const double along = std::abs(flow_world.dot(ray));
   const double across = (flow_world - flow_world.dot(ray) * ray).norm();
-  const double k = o.noise_sigmas * std::sqrt(2.0);
-  const double along_limit = o.min_flow + k * DepthNoiseSigma(o, depth);
-  const double across_limit = o.min_flow + k * o.pixel_sigma * depth / focal_px;
-  return along > along_limit || across > across_limit;
+  const double across_limit =
+      o.min_flow + o.noise_sigmas * std::sqrt(2.0) * o.pixel_sigma * depth / focal_px;
+  return along > AlongRayLimit(o, depth) || across > across_limit;
 }
 
 std::vector<uint8_t> ClassifyBySceneFlow(const SceneFlowOptions& o,

@@ -75,6 +75,9 @@ struct SceneFlowOptions {
 
 // Axial depth noise σ_z(z) of the options' model, metres.
 double DepthNoiseSigma(const SceneFlowOptions& options, double depth);
+// The largest motion along the viewing ray that noise explains at `depth`:
+// min_flow + noise_sigmas·√2·σ_z(depth).
+double AlongRayLimit(const SceneFlowOptions& options, double depth);
 
 // Whether a scene flow (world frame) of a landmark at `point_world`, seen at `depth` from
 // `camera_centre` by a camera of focal length `focal_px`, exceeds the noise thresholds.

@@ -514,8 +514,7 @@ void Tracker::CheckLandmarks(const Frame& frame, const ConsistencyInput& input,
     if (camera.HasDistortion()) uv = camera.Distort(uv);
     const int u = static_cast<int>(std::lround(uv.x())), v = static_cast<int>(std::lround(uv.y()));
     if (u < r || v < r || u >= width - r || v >= height - r) continue;
-    const double tolerance =
-        o.min_flow + o.noise_sigmas * std::sqrt(2.0) * DepthNoiseSigma(o, X.z());
+    const double tolerance = AlongRayLimit(o, X.z());
     int valid = 0, behind = 0;
     for (int y = v - r; y <= v + r; ++y) {
       const float* row = input.depth.ptr<float>(y);
