@@ -110,7 +110,9 @@ bool FindsDeskObjects(const std::vector<Detection>& d, cv::Size image, bool no_p
     EXPECT_GE(x.box.x, 0);
     EXPECT_LE(x.box.br().x, image.width + 0.5f);
     EXPECT_GE(x.score, 0.3f);
-    if (no_person) EXPECT_NE(x.class_name, "person");
+    if (no_person) {
+      EXPECT_NE(x.class_name, "person");
+    }
     desk_object |= x.class_name == "tv" || x.class_name == "keyboard" || x.class_name == "laptop" ||
                    x.class_name == "mouse" || x.class_name == "cup";
   }
@@ -142,6 +144,82 @@ TEST_F(OnnxDetectors, AModelOfAnotherFormatIsRejectedBeforeUse) {
   EXPECT_NE(as_fastest.find("'fastestdet'"), std::string::npos) << as_fastest;
   const std::string as_yolo = MessageOf([&] { MakeYolov8Detector(nanodet, {}); });
   EXPECT_NE(as_yolo.find("'yolov8'"), std::string::npos) << as_yolo;
+}
+
+// testdata/onnx/yolov8_tiny.onnx (scripts/make_test_models.py): a 64×64 model of the YOLOv8
+// signature whose 'person' score is the input's mean red and whose 'car' score is its mean
+// blue, with constant boxes in input pixels. A 640×480 image letterboxes to 64×48 (scale 0.1)
+// above 16 rows of grey padding, so a pure red image scores 0.75 + 0.25·114/255 for a person.
+class TinyYolov8 : public ::testing::Test {
+ protected:
+  std::vector<Detection> DetectOn(const cv::Scalar& bgr) {
+    FrontEndFrame frame;
+    frame.bgr = cv::Mat(480, 640, CV_8UC3, bgr);
+    return detector_->Detect(frame);
+  }
+  std::unique_ptr<Detector> detector_ =
+      MakeYolov8Detector(testing::SourceDir() / "testdata/onnx/yolov8_tiny.onnx", {});
+};
+
+constexpr float kRedImageScore = 0.75f + 0.25f * 114.0f / 255.0f;
+
+TEST_F(TinyYolov8, DecodesBoxesThroughTheLetterboxInRgbOrder) {
+  const auto red = DetectOn(cv::Scalar(0, 0, 255));
+  // Anchor 1 duplicates anchor 0 at 0.9 of its score: class-wise NMS keeps one.
+  ASSERT_EQ(red.size(), 1u);
+  EXPECT_EQ(red[0].class_name, "person");
+  EXPECT_NEAR(red[0].score, kRedImageScore, 1e-4);
+  // Box (cx 20, cy 26, w 16, h 20) in model pixels, divided by the letterbox scale 0.1.
+  EXPECT_NEAR(red[0].box.x, 120, 0.01);
+  EXPECT_NEAR(red[0].box.y, 160, 0.01);
+  EXPECT_NEAR(red[0].box.width, 160, 0.01);
+  EXPECT_NEAR(red[0].box.height, 200, 0.01);
+
+  const auto blue = DetectOn(cv::Scalar(255, 0, 0));
+  ASSERT_EQ(blue.size(), 1u);
+  EXPECT_EQ(blue[0].class_name, "car");
+  EXPECT_NEAR(blue[0].box.x, 120, 0.01);
+  EXPECT_NEAR(blue[0].box.y, 360, 0.01);
+  EXPECT_NEAR(blue[0].box.br().x, 200, 0.01);
+  EXPECT_NEAR(blue[0].box.br().y, 440, 0.01);
+}
+
+TEST_F(TinyYolov8, ScoresBelowTheThresholdAreDropped) {
+  // Black: only the padding (mean 0.11 in every channel) scores.
+  EXPECT_TRUE(DetectOn(cv::Scalar(0, 0, 0)).empty());
+  DetectorOptions strict;
+  strict.score_threshold = 0.9;
+  detector_ = MakeYolov8Detector(testing::SourceDir() / "testdata/onnx/yolov8_tiny.onnx", strict);
+  EXPECT_TRUE(DetectOn(cv::Scalar(0, 0, 255)).empty());
+}
+
+TEST(TinyYolov8Dynamic, ADynamicInputSizeLetterboxesTo640) {
+  // The same weights with symbolic height and width: the image goes in at 640×640 (scale 1),
+  // so the boxes come back as the model's constants.
+  auto detector =
+      MakeYolov8Detector(testing::SourceDir() / "testdata/onnx/yolov8_dynamic_tiny.onnx", {});
+  FrontEndFrame frame;
+  frame.bgr = cv::Mat(480, 640, CV_8UC3, cv::Scalar(0, 0, 255));
+  const auto red = detector->Detect(frame);
+  ASSERT_EQ(red.size(), 1u);
+  // OpenCV's pooling sums 409 600 floats in single precision: the padding's 0.447 adds up as
+  // 0.4375 once the sum passes 2^18.
+  EXPECT_NEAR(red[0].score, kRedImageScore, 5e-3);
+  EXPECT_NEAR(red[0].box.x, 12, 0.01);
+  EXPECT_NEAR(red[0].box.y, 16, 0.01);
+  EXPECT_NEAR(red[0].box.width, 16, 0.01);
+}
+
+TEST(TinyOnnxModels, AModelOfAnotherSignatureIsRejectedBeforeUse) {
+  const auto onnx = testing::SourceDir() / "testdata/onnx";
+  const std::string as_nanodet =
+      MessageOf([&] { MakeNanoDetDetector(onnx / "yolov8_tiny.onnx", {}); });
+  EXPECT_NE(as_nanodet.find("yolov8_tiny.onnx"), std::string::npos) << as_nanodet;
+  EXPECT_NE(as_nanodet.find("'nanodet'"), std::string::npos) << as_nanodet;
+  // The segmenter's two outputs are not YOLOv8's 1×84×N.
+  const std::string as_yolo =
+      MessageOf([&] { MakeYolov8Detector(onnx / "yoloseg_tiny.onnx", {}); });
+  EXPECT_NE(as_yolo.find("do not match the 'yolov8' format"), std::string::npos) << as_yolo;
 }
 
 TEST(OnnxDetectorFiles, MissingOrNonOnnxFilesAreClearErrors) {

@@ -25,9 +25,9 @@ struct FlowOptions {
   // at 30 Hz for their boundary to stand out of DIS's smoothing; a longer baseline scales their
   // flow difference (the camera-rotation term still cancels between neighbours).
   int frame_gap = 3;
-  // onnx backend: names of the two image inputs (previous, current). Empty: the model has one
-  // input 1×6×H×W, previous RGB then current RGB. (OpenCV dnn cannot list a model's input
-  // names, so a two-input model needs them spelled out.)
+  // onnx backend: names of the two image inputs (previous, current). Empty: a model with one
+  // input takes 1×6×H×W, previous RGB then current RGB; a model with two takes previous then
+  // current in the order the file declares its inputs.
   std::vector<std::string> onnx_input_names;
   void Check() const;
 };
@@ -37,10 +37,10 @@ std::unique_ptr<FlowEstimator> MakeDisFlow(const FlowOptions& options);
 // OpenCV's Farnebäck polynomial-expansion flow: slower, smoother.
 std::unique_ptr<FlowEstimator> MakeFarnebackFlow(const FlowOptions& options);
 // A learned-flow network exported to ONNX (e.g. PWC-Net, RAFT): the two images as RGB scaled to
-// [0, 1], either stacked in one 1×6×H×W input or as two 1×3×H×W inputs named in
-// `onnx_input_names`; one output 1×2×H×W of flow in pixels of the input size. H×W is the model's
-// declared input size, or the work size when dynamic. Throws Error naming the file when it is
-// missing or its inputs/outputs do not fit.
+// [0, 1], either stacked in one 1×6×H×W input or as two 1×3×H×W inputs (named in
+// `onnx_input_names`, or in the file's order); one output 1×2×H×W of flow in pixels of the input
+// size. H×W is the model's declared input size, or the work size when dynamic. Throws Error naming
+// the file when it is missing or its inputs/outputs do not fit.
 std::unique_ptr<FlowEstimator> MakeOnnxFlow(const std::filesystem::path& model,
                                             const FlowOptions& options);
 

@@ -202,7 +202,7 @@ class Yolov8 : public OnnxDetector {
  public:
   Yolov8(const std::filesystem::path& model, const DetectorOptions& options)
       : OnnxDetector(model, "yolov8", options) {
-    input_size_ = ModelInputSize(net_, {640, 640});
+    input_size_ = ModelInputSize(model, {640, 640});
     Validate();
   }
 

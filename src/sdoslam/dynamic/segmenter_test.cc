@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "sdoslam/core/error.h"
+#include "sdoslam/dynamic/yoloseg.h"
 #include "sdoslam/synth/renderer.h"
 #include "sdoslam/synth/scenarios.h"
 #include "sdoslam/testing/test_util.h"
@@ -114,6 +115,59 @@ TEST(FileSegmenter, ReadsInstanceIdsAndRejectsMissingOrWrongSizedMasks) {
     EXPECT_NE(std::string(e.what()).find("c.png: no instance mask"), std::string::npos);
   }
   EXPECT_THROW(FileSegmenter(dir / "absent", {64, 48}), Error);
+}
+
+// testdata/onnx/yoloseg_tiny.onnx (scripts/make_test_models.py): a 64×64 model of the
+// Fast-SAM / YOLOv8-seg signature with two instances — box over the left half of the
+// letterboxed content with the prototype that is positive on red, box over the right half with
+// the one positive on green — and 16×16 prototypes. Each instance's mask must come back at image
+// size where its colour lies inside its box, and nowhere else.
+TEST(OnnxYoloSegSegmenter, DecodesMasksFromCoefficientsPrototypesAndBoxes) {
+  OnnxYoloSegSegmenter segmenter(testing::SourceDir() / "testdata/onnx/yoloseg_tiny.onnx");
+  FrontEndFrame frame;
+  frame.bgr = cv::Mat(480, 640, CV_8UC3, cv::Scalar(0, 0, 0));
+  // Aligned to the prototypes' 40-image-pixel cells, so that the ideal mask is exact.
+  const cv::Rect red_left(120, 160, 160, 200), green_right(400, 80, 160, 200),
+      red_right(440, 320, 120, 120);
+  frame.bgr(red_left).setTo(cv::Scalar(0, 0, 255));
+  frame.bgr(green_right).setTo(cv::Scalar(0, 255, 0));
+  frame.bgr(red_right).setTo(cv::Scalar(0, 0, 255));  // red, but outside instance 0's box
+  const Segmentation s = segmenter.Segment(frame);
+  ASSERT_EQ(s.labels.size(), frame.bgr.size());
+  EXPECT_EQ(s.count, 2);
+  for (const cv::Rect& object : {red_left, green_right}) {
+    const int label = s.labels.at<int>((object.tl() + object.br()) / 2);
+    ASSERT_GE(label, 0);
+    const cv::Mat mask = s.labels == label;
+    cv::Mat truth(frame.bgr.size(), CV_8U, cv::Scalar(0));
+    truth(object).setTo(255);
+    const double inter = cv::countNonZero(mask & truth), uni = cv::countNonZero(mask | truth);
+    EXPECT_GT(inter / uni, 0.9) << object;
+  }
+  EXPECT_NE(s.labels.at<int>(green_right.y + 10, green_right.x + 10),
+            s.labels.at<int>(red_left.y + 10, red_left.x + 10));
+  EXPECT_EQ(cv::countNonZero(s.labels(red_right) >= 0), 0);
+  EXPECT_EQ(s.labels.at<int>(10, 10), -1);
+
+  YoloSegOptions strict;
+  strict.score_threshold = 0.85;  // instance 1 scores 0.8
+  OnnxYoloSegSegmenter one(testing::SourceDir() / "testdata/onnx/yoloseg_tiny.onnx", strict);
+  EXPECT_EQ(one.Segment(frame).count, 1);
+}
+
+TEST(OnnxYoloSegSegmenter, RejectsMissingFilesAndOtherSignatures) {
+  const auto onnx = testing::SourceDir() / "testdata/onnx";
+  const std::string missing =
+      testing::MessageOf([&] { OnnxYoloSegSegmenter s(onnx / "absent.onnx"); });
+  EXPECT_NE(missing.find("absent.onnx: model file for 'onnx-yoloseg' does not exist"),
+            std::string::npos)
+      << missing;
+  const std::string detector =
+      testing::MessageOf([&] { OnnxYoloSegSegmenter s(onnx / "yolov8_tiny.onnx"); });
+  EXPECT_NE(detector.find("yolov8_tiny.onnx: outputs [1x84x3] do not match the 'onnx-yoloseg' "
+                          "format: expected two outputs"),
+            std::string::npos)
+      << detector;
 }
 
 TEST(PngHeader, ReadsSizeAndRejectsOtherFiles) {

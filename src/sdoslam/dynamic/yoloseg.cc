@@ -57,7 +57,7 @@ OnnxYoloSegSegmenter::OnnxYoloSegSegmenter(const std::filesystem::path& model,
   impl_->path = model;
   impl_->options = options;
   impl_->net = LoadOnnxModel(model, "onnx-yoloseg");
-  impl_->input = ModelInputSize(impl_->net, {640, 640});
+  impl_->input = ModelInputSize(model, {640, 640});
   std::vector<cv::Mat> outputs;
   double scale = 1;
   try {
