@@ -116,13 +116,17 @@ TEST_F(MatcherTest, DescriptorSearchNeedsNoPoseAndLocalSearchAddsNoDuplicates) {
   EXPECT_GT(CorrectFraction(local, &matches), 0.95);
   std::set<const MapPoint*> unique;
   for (const MapPoint* p : local.map_points) {
-    if (p != nullptr) EXPECT_TRUE(unique.insert(p).second) << "point matched twice";
+    if (p != nullptr) {
+      EXPECT_TRUE(unique.insert(p).second) << "point matched twice";
+    }
   }
   // A second pass may settle a few matches that were ambiguous, but never matches a point twice.
   EXPECT_LT(SearchLocalPoints(local, points, 1, 1.0), found / 20);
   unique.clear();
   for (const MapPoint* p : local.map_points) {
-    if (p != nullptr) EXPECT_TRUE(unique.insert(p).second) << "point matched twice";
+    if (p != nullptr) {
+      EXPECT_TRUE(unique.insert(p).second) << "point matched twice";
+    }
   }
 }
 
