@@ -104,19 +104,8 @@ INSTANTIATE_TEST_SUITE_P(Boxes, UnknownObjectScenario,
                          ::testing::Values("boxes_translational", "boxes_unconstrained", "mixed"));
 
 INSTANTIATE_TEST_SUITE_P(People, DynamicScenario,
-                         ::testing::Values("walking_static", "walking_xyz", "walking_rpy", "loop"));
-
-// walking_halfsphere: measured sdo 13–16 mm with the consistency check (32 mm without) against
-// an oracle of 6.4 mm: at the issue's 1.5 × oracle + 5 mm (14.6 mm), not safely under it.
-// People close to the camera fill much of the view there. The bound holds the measured state.
-TEST(HalfsphereScenario, SdoStaysWithinThreeTimesTheOracle) {
-  testing::TempDir dir;
-  const ModeResults r = RunAllModes("walking_halfsphere", dir);
-  EXPECT_LE(r.sdo, 0.022);
-  EXPECT_LE(3.0 * r.sdo, r.conventional);
-  ASSERT_TRUE(r.masks.per_class.count("person"));
-  EXPECT_GE(r.masks.per_class.at("person").Iou(), 0.7);
-}
+                         ::testing::Values("walking_static", "walking_xyz", "walking_rpy",
+                                           "walking_halfsphere", "loop"));
 
 // Issue 6: a box carried alongside the camera so that its image motion matches the background's:
 // its outline has no flow gradient and the front end misses it. The scene-flow consistency check

@@ -39,6 +39,7 @@ void SdoClassifierOptions::Check() const {
   fraction(max_segment_area, "max_segment_area");
   fraction(persistence_overlap, "persistence_overlap");
   if (same_depth_tolerance < 0) throw Error("classifier.same_depth_tolerance must be ≥ 0");
+  if (same_depth_min_m < 0) throw Error("classifier.same_depth_min_m must be ≥ 0");
   if (in_front_ratio < 1) throw Error("classifier.in_front_ratio must be ≥ 1");
   if (boundary_band_px < 0 || margin_px < 0 || persistence_frames < 0 || persistence_frames > 250)
     throw Error("classifier: boundary_band_px, margin_px ≥ 0; persistence_frames in [0, 250]");
@@ -160,7 +161,8 @@ SdoResult SdoClassifier::Classify(const Segmentation& segments,
             inside[static_cast<size_t>(s)] >= options_.min_inside_box * st.area;
         const bool same_depth =
             best_depth <= 0 || st.median_depth <= 0 ||
-            std::abs(st.median_depth - best_depth) <= options_.same_depth_tolerance * best_depth;
+            std::abs(st.median_depth - best_depth) <=
+                std::max(options_.same_depth_tolerance * best_depth, options_.same_depth_min_m);
         joins[static_cast<size_t>(s)] = s == best || (mostly_inside && same_depth && st.area > 0);
         if (joins[static_cast<size_t>(s)])
           result.segment_labels[static_cast<size_t>(s)] = kKnownMovable;

@@ -25,8 +25,13 @@ struct SdoClassifierOptions {
   // person into parts. Labels are clipped to the box. When no segment reaches min_box_iou, the
   // box itself is labelled.
   double min_box_iou = 0.1;
-  double min_inside_box = 0.6;         // fraction of a segment's area inside the box
+  double min_inside_box = 0.6;  // fraction of a segment's area inside the box
+  // Same depth: median depths within max(same_depth_tolerance · d, same_depth_min_m) of the
+  // best segment's d. The floor is a body's own depth extent: close up, arms, torso and legs of
+  // one person differ by far more than 15 %, and pieces left out are dynamic features that
+  // tracking would take for static ones.
   double same_depth_tolerance = 0.15;  // relative difference of median depths
+  double same_depth_min_m = 0.4;       // metres
 
   // Unknown objects. A segment is selected by motion when at least `min_outline_on_boundary`
   // of its outline lies within `boundary_band_px` (work pixels) of a motion boundary, it is in

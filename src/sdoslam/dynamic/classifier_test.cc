@@ -71,6 +71,28 @@ TEST(SdoClassifier, PersonSplitIntoPartsIsWholeButTheWallInsideTheBoxIsNot) {
   EXPECT_EQ(r.segment_labels[0], kStatic);
 }
 
+TEST(SdoClassifier, CloseUpAnArmJoinsItsBodyThoughItsDepthDiffersByMoreThanFifteenPercent) {
+  Scene s;
+  // An arm (segment 3) held 0.3 m in front of A's body (1 m), a wall patch (segment 4, 3 m),
+  // both inside the person's box.
+  const cv::Rect arm(22, 60, 10, 25);
+  s.segments.labels(arm).setTo(3);
+  s.depth(arm).setTo(0.7f);
+  s.segments.labels(cv::Rect(52, 30, 6, 20)).setTo(4);
+  s.segments.count = 5;
+  const std::vector<Detection> person = {{0, "person", 0.9f, cv::Rect2f(18, 28, 42, 64)}};
+  SdoClassifier classifier(ExactOptions());  // default band: max(15 %, 0.4 m)
+  SdoResult r = classifier.Classify(s.segments, person, cv::Mat(), cv::Mat(), s.depth, {160, 120});
+  EXPECT_EQ(r.segment_labels,
+            (std::vector<uint8_t>{kStatic, kKnownMovable, kStatic, kKnownMovable, kStatic}));
+  // A relative band alone (15 % of 1 m) leaves the arm out.
+  SdoClassifierOptions relative_only = ExactOptions();
+  relative_only.same_depth_min_m = 0;
+  r = SdoClassifier(relative_only)
+          .Classify(s.segments, person, cv::Mat(), cv::Mat(), s.depth, {160, 120});
+  EXPECT_EQ(r.segment_labels[3], kStatic);
+}
+
 TEST(SdoClassifier, BoxWithoutAMatchingSegmentIsLabelledItself) {
   Scene s;
   s.segments.labels.setTo(-1);  // a segmenter that found nothing
@@ -170,6 +192,9 @@ TEST(SdoClassifierOptions, RejectsOutOfRangeValues) {
   EXPECT_THROW(o.Check(), Error);
   o = {};
   o.persistence_frames = -1;
+  EXPECT_THROW(o.Check(), Error);
+  o = {};
+  o.same_depth_min_m = -0.1;
   EXPECT_THROW(o.Check(), Error);
 }
 

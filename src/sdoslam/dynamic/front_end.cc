@@ -135,6 +135,7 @@ FrontEndOptions ReadFrontEndOptions(ConfigMap& root) {
     s->Read("min_box_iou", &c.min_box_iou);
     s->Read("min_inside_box", &c.min_inside_box);
     s->Read("same_depth_tolerance", &c.same_depth_tolerance);
+    s->Read("same_depth_min_m", &c.same_depth_min_m);
     s->Read("boundary_band_px", &c.boundary_band_px);
     s->Read("min_outline_on_boundary", &c.min_outline_on_boundary);
     s->Read("min_in_front", &c.min_in_front);
@@ -209,6 +210,7 @@ void WriteFrontEndOptions(const FrontEndOptions& o, YAML::Emitter* out) {
   kv("min_box_iou", c.min_box_iou);
   kv("min_inside_box", c.min_inside_box);
   kv("same_depth_tolerance", c.same_depth_tolerance);
+  kv("same_depth_min_m", c.same_depth_min_m);
   kv("boundary_band_px", c.boundary_band_px);
   kv("min_outline_on_boundary", c.min_outline_on_boundary);
   kv("min_in_front", c.min_in_front);
