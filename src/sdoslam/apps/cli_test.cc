@@ -192,6 +192,21 @@ TEST_F(CliRun, ImpossibleIntrinsicsAndUnknownKeysAreNamed) {
   EXPECT_FALSE(std::filesystem::exists(dir_ / "out" / "CameraTrajectory.txt"));
 }
 
+TEST_F(CliRun, BenchTimesTheFrontEndInSdoModeAndRejectsUnknownBackends) {
+  const std::string common = "bench --runs 2 --dataset " + (dir_ / "seq").string() + " --config " +
+                             (dir_ / "seq" / "camera.yaml").string() + " --work " +
+                             (dir_ / "bench").string();
+  Result r = RunSdoslam(common + " --mode sdo --detector none");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("run 2: "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("mode sdo, 2 runs"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("front end "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("detect 0.0 [none], flow"), std::string::npos) << r.output;
+  r = RunSdoslam(common + " --mode sdo --detector yolo9000");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("yolo9000"), std::string::npos) << r.output;
+}
+
 TEST_F(CliRun, EmptySequenceAndNoDepthAtTheStartAreClearErrors) {
   testing::WriteText(dir_ / "seq" / "rgb.txt", "# no frames\n");
   std::string output = Run((dir_ / "seq" / "camera.yaml").string(), (dir_ / "seq").string());

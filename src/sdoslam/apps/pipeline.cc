@@ -34,6 +34,21 @@ RunMode ParseRunMode(const std::string& name) {
   throw Error("unknown mode '" + name + "' (known: conventional, sdo, oracle)");
 }
 
+RunOptions LoadRunConfig(const std::filesystem::path& config) {
+  RunOptions run;
+  ConfigMap root = ConfigMap::LoadFile(config.string());
+  std::string mode = "conventional";
+  root.Read("mode", &mode);  // a run's resolved config.yaml records it
+  run.mode = ParseRunMode(mode);
+  std::optional<ConfigMap> camera_section = root.Section("camera");
+  if (!camera_section) throw Error(config.string() + ": missing the 'camera:' section");
+  run.camera = ReadCameraOptions(*camera_section);
+  run.slam = ReadSlamOptions(root);
+  run.front_end = ReadFrontEndOptions(root);
+  root.RejectUnknownKeys();
+  return run;
+}
+
 namespace {
 
 static_assert(kSceneFlow == kSceneFlowLabel, "the front end and tracking name label 3 alike");
@@ -102,7 +117,8 @@ RunSummary RunOnDataset(const RunOptions& run) {
       "culled_points,front_end_ms,segment_ms,detect_ms,flow_ms,classify_ms,features_ms,"
       "tracking_ms,mapping_ms\n";
   std::string feature_log = "index,x,y,label\n";
-  std::vector<double> frame_ms, front_end_ms, mapping_ms;
+  std::vector<double> frame_ms, front_end_ms, mapping_ms, total_ms;
+  std::vector<double> segment_ms, detect_ms, flow_ms, classify_ms;
   int best_depth_features = 0;
   for (size_t i = 0; i < summary.frames; ++i) {
     const RgbdFrame frame = dataset.Load(i);
@@ -117,6 +133,10 @@ RunSummary RunOnDataset(const RunOptions& run) {
       segments = sdo->segments.labels;
       for (uint8_t l : sdo->segment_labels) locked_segments.push_back(l == kKnownMovable);
       front_end_ms.push_back(front_timing.total());
+      segment_ms.push_back(front_timing.segment_ms);
+      detect_ms.push_back(front_timing.detect_ms);
+      flow_ms.push_back(front_timing.flow_ms);
+      classify_ms.push_back(front_timing.classify_ms);
     } else if (run.mode == RunMode::kOracle) {
       labels = LoadOracleLabels(run.dataset, rgb_paths[i], image_size);
     }
@@ -143,6 +163,7 @@ RunSummary RunOnDataset(const RunOptions& run) {
     }
     summary.lost += r.state == TrackingState::kLost;
     frame_ms.push_back(timing.features_ms + timing.tracking_ms);
+    total_ms.push_back(frame_ms.back() + front_timing.total());
     const int dynamic_features = static_cast<int>(std::count_if(
         r.feature_labels.begin(), r.feature_labels.end(), [](uint8_t l) { return l != 0; }));
     log += fmt::format(
@@ -186,6 +207,10 @@ RunSummary RunOnDataset(const RunOptions& run) {
   summary.map_points = slam.map().GoodPoints();
   summary.median_frame_ms = ComputeErrorStats(frame_ms).median;
   summary.median_front_end_ms = ComputeErrorStats(front_end_ms).median;
+  summary.median_front_end_stages = {
+      ComputeErrorStats(segment_ms).median, ComputeErrorStats(detect_ms).median,
+      ComputeErrorStats(flow_ms).median, ComputeErrorStats(classify_ms).median};
+  summary.median_total_ms = ComputeErrorStats(total_ms).median;
   summary.median_mapping_ms = ComputeErrorStats(mapping_ms).median;
   if (mask_evaluator) summary.masks = mask_evaluator->result();
 

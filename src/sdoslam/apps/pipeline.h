@@ -39,12 +39,19 @@ struct RunOptions {
   std::function<void(const TrackingResult& result, const System& slam)> after_frame;
 };
 
+// Reads a run's config file: `mode:` and the camera:, SLAM and dynamic: sections into the
+// matching RunOptions fields (the rest stay default). Unknown keys are errors naming the file and
+// line.
+RunOptions LoadRunConfig(const std::filesystem::path& config);
+
 struct RunSummary {
   size_t frames = 0, tracked = 0, lost = 0, not_initialized = 0;
   size_t keyframes = 0, map_points = 0;
-  double median_frame_ms = 0;      // features + tracking
-  double median_front_end_ms = 0;  // the dynamic front end (0 in conventional mode)
-  double median_mapping_ms = 0;    // per keyframe
+  double median_frame_ms = 0;              // features + tracking
+  double median_front_end_ms = 0;          // the dynamic front end (0 in conventional mode)
+  FrontEndTiming median_front_end_stages;  // each stage's own median
+  double median_total_ms = 0;              // front end + features + tracking, per frame
+  double median_mapping_ms = 0;            // per keyframe
   Trajectory trajectory;
   std::optional<EstimateEvaluation> evaluation;  // when the dataset has groundtruth.txt
   std::optional<MaskEvaluation>

@@ -22,33 +22,15 @@ struct RunArgs {
   std::string associations;
   int max_frames = 0;
   bool sequential = false;
-  std::string mode;  // empty: the config's `mode:` or conventional
-  std::string segmenter, detector, detector_model, flow;
+  RunOverrides overrides;
   bool save_overlays = false;
   bool save_masks = false;
-  std::string consistency;  // on | off; empty: the config's consistency.enabled
 };
 
 void RunSlam(const RunArgs& args) {
   // Everything that can be wrong with the inputs is found before the first frame.
-  RunOptions run;
-  ConfigMap root = ConfigMap::LoadFile(args.config);
-  std::string mode = "conventional";
-  root.Read("mode", &mode);  // a run's resolved config.yaml records it
-  run.mode = ParseRunMode(args.mode.empty() ? mode : args.mode);
-  std::optional<ConfigMap> camera_section = root.Section("camera");
-  if (!camera_section) throw Error(args.config + ": missing the 'camera:' section");
-  run.camera = ReadCameraOptions(*camera_section);
-  run.slam = ReadSlamOptions(root);
-  run.front_end = ReadFrontEndOptions(root);
-  root.RejectUnknownKeys();
-  // Command-line backends override the config's.
-  if (!args.segmenter.empty()) run.front_end.segmenter = args.segmenter;
-  if (!args.detector.empty()) run.front_end.detector = args.detector;
-  if (!args.detector_model.empty()) run.front_end.detector_model = args.detector_model;
-  if (!args.flow.empty()) run.front_end.flow = args.flow;
-  run.front_end.Check();
-  if (!args.consistency.empty()) run.slam.tracking.consistency.enabled = args.consistency == "on";
+  RunOptions run = LoadRunConfig(args.config);
+  args.overrides.ApplyTo(&run);
   run.slam.sequential = args.sequential;
   run.dataset = args.dataset;
   run.associations = args.associations;
@@ -83,21 +65,7 @@ void AddRunCommand(CLI::App& app) {
       ->check(CLI::NonNegativeNumber);
   cmd->add_flag("--sequential", args->sequential,
                 "map inline after each keyframe: bit-identical runs (default: a mapping thread)");
-  cmd->add_option("--mode", args->mode,
-                  "conventional (all features), sdo (the dynamic front end), oracle (ground-truth "
-                  "masks of a synthetic sequence); default: the config's mode: or conventional");
-  cmd->add_option("--segmenter", args->segmenter,
-                  "override dynamic.segmenter.backend: rgbd, "
-                  "onnx-yoloseg, file");
-  cmd->add_option("--detector", args->detector,
-                  "override dynamic.detector.backend: nanodet, "
-                  "fastestdet, yolov8, hog, file, none");
-  cmd->add_option("--detector-model", args->detector_model, "ONNX file of the detector");
-  cmd->add_option("--flow", args->flow, "override dynamic.flow.backend: dis, farneback, onnx");
-  cmd->add_option("--consistency", args->consistency,
-                  "mode sdo: the scene-flow consistency check and map hygiene, on (default) or "
-                  "off; overrides consistency.enabled")
-      ->check(CLI::IsMember({"on", "off"}));
+  args->overrides.AddTo(cmd);
   cmd->add_flag("--save-overlays", args->save_overlays,
                 "write overlays/<frame>.png: features (static green, dynamic red), segments, "
                 "motion boundaries, detections");
@@ -105,6 +73,33 @@ void AddRunCommand(CLI::App& app) {
                 "write masks/<frame>.png (0 static, 1 known movable, 2 moving unknown) and "
                 "features.csv, for sdoslam eval-masks");
   cmd->callback([args] { RunSlam(*args); });
+}
+
+void RunOverrides::AddTo(CLI::App* cmd) {
+  cmd->add_option("--mode", mode,
+                  "conventional (all features), sdo (the dynamic front end), oracle (ground-truth "
+                  "masks of a synthetic sequence); default: the config's mode: or conventional");
+  cmd->add_option("--segmenter", segmenter,
+                  "override dynamic.segmenter.backend: rgbd, onnx-yoloseg, file");
+  cmd->add_option(
+      "--detector", detector,
+      "override dynamic.detector.backend: nanodet, fastestdet, yolov8, hog, file, none");
+  cmd->add_option("--detector-model", detector_model, "ONNX file of the detector");
+  cmd->add_option("--flow", flow, "override dynamic.flow.backend: dis, farneback, onnx");
+  cmd->add_option("--consistency", consistency,
+                  "mode sdo: the scene-flow consistency check and map hygiene, on (default) or "
+                  "off; overrides consistency.enabled")
+      ->check(CLI::IsMember({"on", "off"}));
+}
+
+void RunOverrides::ApplyTo(RunOptions* run) const {
+  if (!mode.empty()) run->mode = ParseRunMode(mode);
+  if (!segmenter.empty()) run->front_end.segmenter = segmenter;
+  if (!detector.empty()) run->front_end.detector = detector;
+  if (!detector_model.empty()) run->front_end.detector_model = detector_model;
+  if (!flow.empty()) run->front_end.flow = flow;
+  run->front_end.Check();
+  if (!consistency.empty()) run->slam.tracking.consistency.enabled = consistency == "on";
 }
 
 }  // namespace sdoslam
