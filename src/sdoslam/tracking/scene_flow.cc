@@ -25,6 +25,7 @@ void SceneFlowOptions::Check() const {
     throw Error("consistency.track_levels must be in [0, 6]");
   if (!(max_track_error > 0)) throw Error("consistency.max_track_error must be positive");
   if (!(max_round_trip_px > 0)) throw Error("consistency.max_round_trip_px must be positive");
+  if (!(skip_round_trip_px >= 0)) throw Error("consistency.skip_round_trip_px must be >= 0");
   if (cull_after < 1) throw Error("consistency.cull_after must be >= 1");
   if (depth_window_radius < 0 || depth_window_radius > 10)
     throw Error("consistency.depth_window_radius must be in [0, 10]");
@@ -86,15 +87,19 @@ std::vector<uint8_t> ClassifyBySceneFlow(const SceneFlowOptions& o,
 
 void TrackPointsBack(const SceneFlowOptions& o, const cv::Mat& current_gray,
                      const cv::Mat& previous_gray, const std::vector<cv::Point2f>& points,
-                     std::vector<cv::Point2f>* previous_points, std::vector<uint8_t>* found) {
-  previous_points->assign(points.begin(), points.end());
+                     std::vector<cv::Point2f>* previous_points, std::vector<uint8_t>* found,
+                     const std::vector<cv::Point2f>* guesses) {
+  CV_Assert(guesses == nullptr || guesses->size() == points.size());
+  const std::vector<cv::Point2f>& start = guesses != nullptr ? *guesses : points;
+  previous_points->assign(start.begin(), start.end());
   found->assign(points.size(), 0);
   if (points.empty()) return;
   std::vector<float> error;
   cv::calcOpticalFlowPyrLK(
       current_gray, previous_gray, points, *previous_points, *found, error,
       cv::Size(o.track_window, o.track_window), o.track_levels,
-      cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.03));
+      cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.03),
+      guesses != nullptr ? cv::OPTFLOW_USE_INITIAL_FLOW : 0);
   const float max_x = static_cast<float>(previous_gray.cols - 1);
   const float max_y = static_cast<float>(previous_gray.rows - 1);
   std::vector<size_t> kept;
@@ -104,8 +109,11 @@ void TrackPointsBack(const SceneFlowOptions& o, const cv::Mat& current_gray,
     if (!(error[i] <= o.max_track_error) || p.x < 0 || p.y < 0 || p.x > max_x || p.y > max_y) {
       (*found)[i] = 0;
     } else if ((*found)[i]) {
-      kept.push_back(i);
-      starts.push_back(p);
+      const cv::Point2f off = guesses != nullptr ? p - (*guesses)[i] : cv::Point2f(1e9f, 1e9f);
+      if (off.dot(off) > o.skip_round_trip_px * o.skip_round_trip_px) {
+        kept.push_back(i);
+        starts.push_back(p);
+      }
     }
   }
   if (kept.empty()) return;

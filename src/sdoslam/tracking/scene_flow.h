@@ -40,6 +40,10 @@ struct SceneFlowOptions {
   // repetitive texture and occlusions make Lucas–Kanade slip, and a slipped correspondence looks
   // exactly like motion.
   double max_round_trip_px = 0.5;
+  // A correspondence found within this many px of where a static point would be (the search's
+  // start, from the rough pose) skips the round trip: it cannot be judged moving across the ray
+  // (min_flow alone is over a pixel at 4 m), so checking it would only cost time. 0: never skip.
+  double skip_round_trip_px = 1.0;
   // Map hygiene: a landmark judged inconsistent this many times without a consistent match in
   // between (its feature has large scene flow, or it has moved away: the depth image sees
   // through where it should be) is culled from the map.
@@ -68,6 +72,7 @@ struct SceneFlowOptions {
     visit("track_levels", o.track_levels);
     visit("max_track_error", o.max_track_error);
     visit("max_round_trip_px", o.max_round_trip_px);
+    visit("skip_round_trip_px", o.skip_round_trip_px);
     visit("cull_after", o.cull_after);
     visit("depth_window_radius", o.depth_window_radius);
   }
@@ -100,10 +105,13 @@ std::vector<uint8_t> ClassifyBySceneFlow(const SceneFlowOptions& options,
 
 // Follows `points` (pixels of `current_gray`) back into `previous_gray` with pyramidal
 // Lucas–Kanade. `found[i]` is 0 where tracking failed, its error exceeded the options' limit, or
-// the round trip (back, then forward again) does not return to the point.
+// the round trip (back, then forward again) does not return to the point. `guesses` (optional,
+// one per point): where each point is expected in `previous_gray`; the search starts there, and
+// a point found within options.skip_round_trip_px of its guess skips the round trip.
 void TrackPointsBack(const SceneFlowOptions& options, const cv::Mat& current_gray,
                      const cv::Mat& previous_gray, const std::vector<cv::Point2f>& points,
-                     std::vector<cv::Point2f>* previous_points, std::vector<uint8_t>* found);
+                     std::vector<cv::Point2f>* previous_points, std::vector<uint8_t>* found,
+                     const std::vector<cv::Point2f>* guesses = nullptr);
 
 // The depths a pixel may have: the one at `pixel` (rounded) and the nearest and farthest valid
 // depths within `radius`, without repeats; empty when the window has no valid depth.

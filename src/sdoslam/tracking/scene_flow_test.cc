@@ -104,6 +104,44 @@ TEST(TrackPointsBack, RecoversAKnownShift) {
   EXPECT_TRUE(found[1]);
 }
 
+TEST(TrackPointsBack, StartsAtTheGuessesAndSkipsTheRoundTripOnlyNearThem) {
+  cv::Mat previous(240, 320, CV_8U);
+  std::mt19937 rng(11);
+  cv::Mat noise(60, 80, CV_8U);
+  for (int y = 0; y < noise.rows; ++y)
+    for (int x = 0; x < noise.cols; ++x) noise.at<uint8_t>(y, x) = static_cast<uint8_t>(rng());
+  cv::resize(noise, previous, previous.size(), 0, 0, cv::INTER_CUBIC);
+  // 30 px: beyond what one pyramid level with a 21 px window reaches from the point itself.
+  cv::Mat current;
+  cv::warpAffine(previous, current, cv::Matx23d(1, 0, 30.37, 0, 1, -0.61), previous.size(),
+                 cv::INTER_LINEAR, cv::BORDER_REFLECT);
+  const std::vector<cv::Point2f> points = {{120, 100}, {200, 150}};
+  const std::vector<cv::Point2f> truth = {{89.63f, 100.61f}, {169.63f, 150.61f}};
+  SceneFlowOptions o;
+  o.track_levels = 0;
+  std::vector<cv::Point2f> back;
+  std::vector<uint8_t> found;
+  TrackPointsBack(o, current, previous, points, &back, &found);
+  EXPECT_FALSE(found[0] && std::abs(back[0].x - truth[0].x) < 0.2f);
+  const std::vector<cv::Point2f> guesses = {{90.0f, 100.3f}, {170.1f, 150.9f}};
+  TrackPointsBack(o, current, previous, points, &back, &found, &guesses);
+  for (size_t i = 0; i < 2; ++i) {
+    ASSERT_TRUE(found[i]) << i;
+    EXPECT_NEAR(back[i].x, truth[i].x, 0.1) << i;
+    EXPECT_NEAR(back[i].y, truth[i].y, 0.1) << i;
+  }
+  // A round trip nothing can pass: only correspondences near their guesses skip it.
+  o.max_round_trip_px = 1e-6;
+  TrackPointsBack(o, current, previous, points, &back, &found, &guesses);
+  EXPECT_EQ(found, (std::vector<uint8_t>{1, 1}));
+  const std::vector<cv::Point2f> far_guesses = {{87.6f, 100.6f}, {170.1f, 150.9f}};
+  TrackPointsBack(o, current, previous, points, &back, &found, &far_guesses);
+  EXPECT_EQ(found, (std::vector<uint8_t>{0, 1}));  // found 2 px from its guess: checked, fails
+  o.skip_round_trip_px = 0;
+  TrackPointsBack(o, current, previous, points, &back, &found, &guesses);
+  EXPECT_EQ(found, (std::vector<uint8_t>{0, 0}));
+}
+
 TEST(DepthCandidates, OffersBothSurfacesOfADepthEdge) {
   cv::Mat depth(20, 20, CV_32F, cv::Scalar(3.0f));
   depth(cv::Rect(0, 0, 10, 20)).setTo(1.2f);  // a near surface on the left half

@@ -353,20 +353,34 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
 
   // Candidates: the features still taken as static. Those with depth get a correspondence in the
   // past frame by Lucas–Kanade, and both ends become landmarks from depth.
+  // The search starts where a static point would be in the past frame, at the rough pose: static
+  // points then need a step or two of Lucas–Kanade instead of a search from scratch.
   std::vector<int> candidates;
-  std::vector<cv::Point2f> tracked_points;
+  std::vector<cv::Point2f> tracked_points, guesses;
   std::vector<size_t> tracked_slot;
+  const Eigen::Isometry3d T_past_camera = past->T_camera_world * frame.T_camera_world.inverse();
   for (size_t i = 0; i < frame.size(); ++i) {
     if (!frame.IsStatic(static_cast<int>(i))) continue;
     if (frame.HasDepth(static_cast<int>(i))) {
       tracked_slot.push_back(candidates.size());
       tracked_points.push_back(frame.keypoints[i].pt);
+      const Eigen::Vector3d in_past =
+          T_past_camera *
+          camera.Unproject({frame.undistorted[i].x, frame.undistorted[i].y}, frame.depth[i]);
+      cv::Point2f guess = frame.keypoints[i].pt;
+      if (in_past.z() > 0) {
+        const Eigen::Vector2d p = camera.Distort(camera.Project(in_past));
+        if (p.x() >= 0 && p.y() >= 0 && p.x() < camera.width() && p.y() < camera.height())
+          guess = cv::Point2f(static_cast<float>(p.x()), static_cast<float>(p.y()));
+      }
+      guesses.push_back(guess);
     }
     candidates.push_back(static_cast<int>(i));
   }
   std::vector<cv::Point2f> past_points;
   std::vector<uint8_t> found;
-  TrackPointsBack(o, input.gray, past->gray, tracked_points, &past_points, &found);
+  TrackPointsBack(o, input.gray, past->gray, tracked_points, &past_points, &found, &guesses);
+
   const std::vector<cv::Point2f> past_undistorted = camera.UndistortPoints(past_points);
   const Eigen::Isometry3d T_world_past = past->T_camera_world.inverse();
   const size_t n = candidates.size();
