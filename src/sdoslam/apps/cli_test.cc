@@ -207,6 +207,27 @@ TEST_F(CliRun, BenchTimesTheFrontEndInSdoModeAndRejectsUnknownBackends) {
   EXPECT_NE(r.output.find("yolo9000"), std::string::npos) << r.output;
 }
 
+TEST_F(CliRun, OnnxBackendsAreChosenOnTheCommandLine) {
+  const std::string onnx = (testing::SourceDir() / "testdata" / "onnx").string();
+  const std::string base = "run --sequential --max-frames 12 --dataset " + (dir_ / "seq").string() +
+                           " --config " + (dir_ / "seq" / "camera.yaml").string() +
+                           " --mode sdo --segmenter onnx-yoloseg --detector yolov8 --flow onnx";
+  Result r = RunSdoslam(base + " --segmenter-model " + onnx + "/yoloseg_tiny.onnx" +
+                        " --detector-model " + onnx + "/yolov8_tiny.onnx --flow-model " + onnx +
+                        "/flow_stacked_tiny.onnx --out " + (dir_ / "onnx").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("12 frames: 12 tracked"), std::string::npos) << r.output;
+  const std::string config = testing::ReadText(dir_ / "onnx" / "config.yaml");
+  EXPECT_NE(config.find("flow_stacked_tiny.onnx"), std::string::npos) << config;
+  // The segmenter's model given as the flow's: refused before the first frame.
+  r = RunSdoslam(base + " --segmenter-model " + onnx + "/yoloseg_tiny.onnx" + " --detector-model " +
+                 onnx + "/yolov8_tiny.onnx --flow-model " + onnx + "/yoloseg_tiny.onnx --out " +
+                 (dir_ / "bad").string());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("yoloseg_tiny.onnx"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir_ / "bad" / "CameraTrajectory.txt"));
+}
+
 TEST_F(CliRun, EmptySequenceAndNoDepthAtTheStartAreClearErrors) {
   testing::WriteText(dir_ / "seq" / "rgb.txt", "# no frames\n");
   std::string output = Run((dir_ / "seq" / "camera.yaml").string(), (dir_ / "seq").string());

@@ -84,8 +84,11 @@ void RunOverrides::AddTo(CLI::App* cmd) {
   cmd->add_option(
       "--detector", detector,
       "override dynamic.detector.backend: nanodet, fastestdet, yolov8, hog, file, none");
+  cmd->add_option("--segmenter-model", segmenter_model,
+                  "ONNX file of the segmenter (onnx-yoloseg: a Fast-SAM / YOLOv8-seg export)");
   cmd->add_option("--detector-model", detector_model, "ONNX file of the detector");
   cmd->add_option("--flow", flow, "override dynamic.flow.backend: dis, farneback, onnx");
+  cmd->add_option("--flow-model", flow_model, "ONNX file of a learned flow network (flow onnx)");
   cmd->add_option("--consistency", consistency,
                   "mode sdo: the scene-flow consistency check and map hygiene, on (default) or "
                   "off; overrides consistency.enabled")
@@ -95,9 +98,11 @@ void RunOverrides::AddTo(CLI::App* cmd) {
 void RunOverrides::ApplyTo(RunOptions* run) const {
   if (!mode.empty()) run->mode = ParseRunMode(mode);
   if (!segmenter.empty()) run->front_end.segmenter = segmenter;
+  if (!segmenter_model.empty()) run->front_end.segmenter_model = segmenter_model;
   if (!detector.empty()) run->front_end.detector = detector;
   if (!detector_model.empty()) run->front_end.detector_model = detector_model;
   if (!flow.empty()) run->front_end.flow = flow;
+  if (!flow_model.empty()) run->front_end.flow_model = flow_model;
   run->front_end.Check();
   if (!consistency.empty()) run->slam.tracking.consistency.enabled = consistency == "on";
 }

@@ -13,7 +13,7 @@ void AddRunCommand(CLI::App& app);
 // Command-line choices that override a run's config file, shared by `run` and `bench`: the
 // mode, the front end's backends and the consistency check. Empty: keep the config's.
 struct RunOverrides {
-  std::string mode, segmenter, detector, detector_model, flow;
+  std::string mode, segmenter, segmenter_model, detector, detector_model, flow, flow_model;
   std::string consistency;  // on | off
   void AddTo(CLI::App* cmd);
   // Applies the overrides and checks the resulting front-end options.

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <fstream>
 #include <opencv2/imgproc.hpp>
 
 #include "sdoslam/core/error.h"
@@ -61,6 +62,33 @@ TEST(ReadOnnxInputs, FilesThatAreNotOnnxAreErrorsNamingThem) {
               ReadOnnxInputs(dir / "absent.onnx");
             }).find("absent.onnx: cannot open"),
             std::string::npos);
+}
+
+// The reader walks bytes from a user's file: every truncation and every single-byte corruption
+// of a real model must end in a result or an Error, never out-of-bounds reads (run under ASan).
+TEST(ReadOnnxInputs, TruncatedOrCorruptedFilesNeverReadOutOfBounds) {
+  const std::string bytes = testing::ReadText(TinyModel("yoloseg_tiny.onnx"));
+  ASSERT_GT(bytes.size(), 500u);
+  testing::TempDir dir;
+  const auto path = dir / "m.onnx";
+  int parsed = 0, rejected = 0;
+  auto attempt = [&](const std::string& content) {
+    std::ofstream(path, std::ios::binary) << content;
+    try {
+      ReadOnnxInputs(path);
+      ++parsed;
+    } catch (const Error&) {
+      ++rejected;
+    }
+  };
+  for (size_t n = 0; n < bytes.size(); n += 3) attempt(bytes.substr(0, n));
+  for (size_t i = 0; i < bytes.size(); i += 2) {
+    std::string corrupt = bytes;
+    corrupt[i] = static_cast<char>(corrupt[i] ^ 0xA5);
+    attempt(corrupt);
+  }
+  EXPECT_GT(rejected, 0);
+  EXPECT_GT(parsed, 0);
 }
 
 TEST(Letterbox, KeepsTheAspectAndPadsBottomRightWithGrey) {
