@@ -72,15 +72,22 @@ TEST(ClassifyBySceneFlow, SegmentsAboveTheRatioTurnDynamicAsAWhole) {
   EXPECT_EQ(ClassifyBySceneFlow(o, measured, exceeds, segment, locked), stricter);
 }
 
+// 60×80 random noise (seeded) and the same upsampled to 240×320: texture for Lucas–Kanade.
+cv::Mat Texture(unsigned seed, cv::Mat* noise_out = nullptr) {
+  std::mt19937 rng(seed);
+  cv::Mat noise(60, 80, CV_8U), texture;
+  for (int y = 0; y < noise.rows; ++y)
+    for (int x = 0; x < noise.cols; ++x) noise.at<uint8_t>(y, x) = static_cast<uint8_t>(rng());
+  cv::resize(noise, texture, cv::Size(320, 240), 0, 0, cv::INTER_CUBIC);
+  if (noise_out != nullptr) *noise_out = noise;
+  return texture;
+}
+
 TEST(TrackPointsBack, RecoversAKnownShift) {
   // A textured image and the same moved by (+3.5, −2.25) px: a point p of the moved (current)
   // image lies at p − (3.5, −2.25) in the previous one.
-  cv::Mat previous(240, 320, CV_8U);
-  std::mt19937 rng(7);
-  cv::Mat noise(60, 80, CV_8U);
-  for (int y = 0; y < noise.rows; ++y)
-    for (int x = 0; x < noise.cols; ++x) noise.at<uint8_t>(y, x) = static_cast<uint8_t>(rng());
-  cv::resize(noise, previous, previous.size(), 0, 0, cv::INTER_CUBIC);
+  cv::Mat noise;
+  const cv::Mat previous = Texture(7, &noise);
   cv::Mat current;
   const cv::Matx23d shift(1, 0, 3.5, 0, 1, -2.25);
   cv::warpAffine(previous, current, shift, previous.size(), cv::INTER_LINEAR, cv::BORDER_REFLECT);
@@ -105,12 +112,7 @@ TEST(TrackPointsBack, RecoversAKnownShift) {
 }
 
 TEST(TrackPointsBack, StartsAtTheGuessesAndSkipsTheRoundTripOnlyNearThem) {
-  cv::Mat previous(240, 320, CV_8U);
-  std::mt19937 rng(11);
-  cv::Mat noise(60, 80, CV_8U);
-  for (int y = 0; y < noise.rows; ++y)
-    for (int x = 0; x < noise.cols; ++x) noise.at<uint8_t>(y, x) = static_cast<uint8_t>(rng());
-  cv::resize(noise, previous, previous.size(), 0, 0, cv::INTER_CUBIC);
+  const cv::Mat previous = Texture(11);
   // 30 px: beyond what one pyramid level with a 21 px window reaches from the point itself.
   cv::Mat current;
   cv::warpAffine(previous, current, cv::Matx23d(1, 0, 30.37, 0, 1, -0.61), previous.size(),
