@@ -68,7 +68,8 @@ ModeResults RunAllModes(const std::string& scenario, const testing::TempDir& dir
 class DynamicScenario : public ::testing::TestWithParam<std::string> {};
 
 // The issue's targets: sdo within 1.5 × oracle + 5 mm; at least 3× better than conventional
-// where conventional exceeds 3 cm; people's mask IoU ≥ 0.7.
+// where conventional exceeds 3 cm; mask IoU ≥ 0.7 for people and ≥ 0.6 for unknown objects, for
+// each class the sequence has.
 TEST_P(DynamicScenario, SdoApproachesTheOracleAndBeatsConventional) {
   testing::TempDir dir;
   const ModeResults r = RunAllModes(GetParam(), dir);
@@ -76,6 +77,7 @@ TEST_P(DynamicScenario, SdoApproachesTheOracleAndBeatsConventional) {
   if (r.conventional > 0.03) {
     EXPECT_LE(3.0 * r.sdo, r.conventional);
   }
+  ASSERT_FALSE(r.masks.per_class.empty());
   if (r.masks.per_class.count("person")) {
     EXPECT_GE(r.masks.per_class.at("person").Iou(), 0.7);
   }
@@ -84,24 +86,15 @@ TEST_P(DynamicScenario, SdoApproachesTheOracleAndBeatsConventional) {
   }
 }
 
-// Unknown boxes (and, in `mixed`, a box carried with the camera and a person). The front end
-// alone reached 20–25 mm here (82 mm and 89 lost frames on mixed); with the scene-flow
-// consistency check (issue 6) sdo meets the issue's bars: measured 7.2–9.7 mm against oracles of
-// 4.9–7.4 mm, box mask IoU 0.67–0.70 (0.24–0.50 from the front end's pixels alone).
-class UnknownObjectScenario : public ::testing::TestWithParam<std::string> {};
-TEST_P(UnknownObjectScenario, SdoApproachesTheOracleWithTheConsistencyCheck) {
-  testing::TempDir dir;
-  const ModeResults r = RunAllModes(GetParam(), dir);
-  EXPECT_LE(r.sdo, 1.5 * r.oracle + 0.005);
-  EXPECT_LE(3.0 * r.sdo, r.conventional);
-  ASSERT_TRUE(r.masks.per_class.count("unknown"));
-  EXPECT_GE(r.masks.per_class.at("unknown").Iou(), 0.6);
-  if (r.masks.per_class.count("person")) {
-    EXPECT_GE(r.masks.per_class.at("person").Iou(), 0.7);
-  }
-}
-INSTANTIATE_TEST_SUITE_P(Boxes, UnknownObjectScenario,
-                         ::testing::Values("boxes_translational", "boxes_unconstrained", "mixed"));
+// Unknown boxes (and, in `mixed`, a box carried with the camera and a person; in box_alongside a
+// box moving with the camera, in parked_cart one that stands still, then moves). The front end
+// alone reached 20–25 mm on the first two (84 mm and 90 lost frames on mixed, 23 mm on
+// box_alongside); with the scene-flow consistency check (issue 6) sdo meets the bars: measured
+// 6.6–10.3 mm against oracles of 3.8–7.4 mm, box mask IoU 0.67–0.70 (0.24–0.50 from the front
+// end's pixels alone).
+INSTANTIATE_TEST_SUITE_P(Boxes, DynamicScenario,
+                         ::testing::Values("boxes_translational", "boxes_unconstrained", "mixed",
+                                           "box_alongside", "parked_cart"));
 
 INSTANTIATE_TEST_SUITE_P(People, DynamicScenario,
                          ::testing::Values("walking_static", "walking_xyz", "walking_rpy",
