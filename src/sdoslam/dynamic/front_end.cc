@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "sdoslam/core/error.h"
+#include "sdoslam/core/stopwatch.h"
 
 namespace sdoslam {
 namespace {
@@ -26,11 +27,6 @@ void CheckName(const std::string& kind, const std::string& name,
                const std::vector<std::string>& known) {
   if (std::find(known.begin(), known.end(), name) == known.end())
     throw Error(fmt::format("unknown {} backend '{}' (known: {})", kind, name, Join(known)));
-}
-
-double MsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
-      .count();
 }
 
 std::filesystem::path Resolve(const std::filesystem::path& p, const std::filesystem::path& base) {

@@ -7,16 +7,9 @@
 #include <optional>
 
 #include "sdoslam/core/error.h"
+#include "sdoslam/core/stopwatch.h"
 
 namespace sdoslam {
-namespace {
-
-double MsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
-      .count();
-}
-
-}  // namespace
 
 void SlamOptions::Check() const {
   orb.Check();
