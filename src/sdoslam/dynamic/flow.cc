@@ -60,7 +60,7 @@ class OnnxFlow : public FlowEstimator {
     // A two-input model needs its inputs named; unless the user did, take the file's order.
     const std::vector<OnnxInput> inputs = ReadOnnxInputs(model);
     if (names_.empty() && inputs.size() == 2) names_ = {inputs[0].name, inputs[1].name};
-    size_ = ModelInputSize(model, {options.work_width, options.work_width * 3 / 4});
+    size_ = ModelInputSize(inputs, {options.work_width, options.work_width * 3 / 4});
     const cv::Mat blank(size_, CV_8UC3, cv::Scalar::all(127));
     cv::Mat out;
     try {

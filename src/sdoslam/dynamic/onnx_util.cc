@@ -100,8 +100,9 @@ class WireReader {
   const char* end_;
 };
 
-// Calls `visit(field, payload)` for every length-delimited field of `message`, or
-// `visit_varint(field, value)` for varints; false when the bytes are not a protobuf message.
+// Calls `visit(field, wire_type, payload, varint)` for every field of `message` (`payload` is
+// meaningful for length-delimited fields, `varint` for varints) until it returns false; false
+// when it did or when the bytes are not a protobuf message.
 template <typename Visit>
 bool ForEachField(WireReader message, Visit visit) {
   uint32_t field, wire_type;
@@ -179,7 +180,10 @@ std::vector<OnnxInput> ReadOnnxInputs(const std::filesystem::path& path) {
 }
 
 cv::Size ModelInputSize(const std::filesystem::path& path, cv::Size fallback) {
-  const std::vector<OnnxInput> inputs = ReadOnnxInputs(path);
+  return ModelInputSize(ReadOnnxInputs(path), fallback);
+}
+
+cv::Size ModelInputSize(const std::vector<OnnxInput>& inputs, cv::Size fallback) {
   if (inputs.empty() || inputs[0].dims.size() != 4) return fallback;
   const int64_t h = inputs[0].dims[2], w = inputs[0].dims[3];
   if (h <= 0 || w <= 0 || h > 16384 || w > 16384) return fallback;

@@ -31,6 +31,7 @@ std::vector<OnnxInput> ReadOnnxInputs(const std::filesystem::path& path);
 // The model's declared input size (W, H from its first input's N×C×H×W) when fixed; `fallback`
 // when dynamic or undeclared.
 cv::Size ModelInputSize(const std::filesystem::path& path, cv::Size fallback);
+cv::Size ModelInputSize(const std::vector<OnnxInput>& inputs, cv::Size fallback);
 
 // Letterbox: resize keeping the aspect into `size`, pad with grey (114) at the bottom/right.
 // Returns the scale applied.

@@ -109,8 +109,10 @@ void TrackPointsBack(const SceneFlowOptions& o, const cv::Mat& current_gray,
     if (!(error[i] <= o.max_track_error) || p.x < 0 || p.y < 0 || p.x > max_x || p.y > max_y) {
       (*found)[i] = 0;
     } else if ((*found)[i]) {
-      const cv::Point2f off = guesses != nullptr ? p - (*guesses)[i] : cv::Point2f(1e9f, 1e9f);
-      if (off.dot(off) > o.skip_round_trip_px * o.skip_round_trip_px) {
+      const cv::Point2f off = guesses != nullptr ? p - (*guesses)[i] : cv::Point2f();
+      const bool at_guess = guesses != nullptr && o.skip_round_trip_px > 0 &&
+                            off.dot(off) <= o.skip_round_trip_px * o.skip_round_trip_px;
+      if (!at_guess) {
         kept.push_back(i);
         starts.push_back(p);
       }
