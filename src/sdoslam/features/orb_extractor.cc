@@ -172,9 +172,16 @@ void OrbExtractor::Extract(const cv::Mat& gray, std::vector<cv::KeyPoint>* keypo
       k.pt *= static_cast<float>(scale_[level]);
     }
     keypoints->insert(keypoints->end(), kps.begin(), kps.end());
-    level_descriptors.push_back(desc);
+    // A level without corners (a plain wall, a covered lens) gives an empty matrix, which
+    // vconcat refuses: leave it out.
+    if (!kps.empty()) level_descriptors.push_back(desc);
   }
-  cv::vconcat(level_descriptors, *descriptors);
+  if (level_descriptors.empty()) {
+    *descriptors = cv::Mat(0, 32, CV_8U);
+  } else {
+    cv::vconcat(level_descriptors, *descriptors);
+  }
+  CV_Assert(descriptors->rows == static_cast<int>(keypoints->size()));
 }
 
 }  // namespace sdoslam

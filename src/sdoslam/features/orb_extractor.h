@@ -1,5 +1,6 @@
 #pragma once
 
+#include <cstring>
 #include <opencv2/core.hpp>
 #include <opencv2/features2d.hpp>
 #include <vector>
@@ -51,12 +52,26 @@ class OrbExtractor {
 std::vector<cv::KeyPoint> DistributeEvenly(const std::vector<cv::KeyPoint>& keypoints,
                                            const cv::Rect& area, int count);
 
+// Bits set in a 64-bit word. Written out (SWAR, Hacker's Delight 5-2) because the baseline
+// x86-64 target has no POPCNT instruction: __builtin_popcountll and std::popcount become a
+// call into libgcc there, which profiled at a tenth of a long run's time.
+inline int PopCount64(uint64_t x) {
+  x = x - ((x >> 1) & 0x5555555555555555ULL);
+  x = (x & 0x3333333333333333ULL) + ((x >> 2) & 0x3333333333333333ULL);
+  x = (x + (x >> 4)) & 0x0F0F0F0F0F0F0F0FULL;
+  return static_cast<int>((x * 0x0101010101010101ULL) >> 56);
+}
+
 // Hamming distance of two 256-bit descriptors.
 inline int DescriptorDistance(const uint8_t* a, const uint8_t* b) {
-  const auto* x = reinterpret_cast<const uint64_t*>(a);
-  const auto* y = reinterpret_cast<const uint64_t*>(b);
-  return __builtin_popcountll(x[0] ^ y[0]) + __builtin_popcountll(x[1] ^ y[1]) +
-         __builtin_popcountll(x[2] ^ y[2]) + __builtin_popcountll(x[3] ^ y[3]);
+  int distance = 0;
+  for (int w = 0; w < 4; ++w) {
+    uint64_t x, y;  // memcpy: descriptor rows need not be 8-byte aligned
+    std::memcpy(&x, a + 8 * w, 8);
+    std::memcpy(&y, b + 8 * w, 8);
+    distance += PopCount64(x ^ y);
+  }
+  return distance;
 }
 
 }  // namespace sdoslam

@@ -2,8 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <cstring>
 #include <opencv2/imgproc.hpp>
 #include <random>
+#include <set>
 
 namespace sdoslam {
 namespace {
@@ -96,6 +98,68 @@ TEST(OrbExtractor, DescriptorsMatchUnderShiftAndOrientationFollowsRotation) {
   ASSERT_GT(matched, 100);
   EXPECT_GT(angle_ok, 0.9 * matched);
   EXPECT_GT(close, 0.8 * matched);  // rotation-invariant descriptors
+}
+
+// A view with nothing to track is an empty result, not an error: the tracker calls the frame
+// lost and goes on.
+TEST(OrbExtractor, ImagesWithoutCornersGiveNoFeatures) {
+  const OrbExtractor orb(OrbOptions{});
+  for (int value : {0, 128, 255}) {  // black, uniform, saturated
+    const cv::Mat image(480, 640, CV_8UC1, cv::Scalar(value));
+    std::vector<cv::KeyPoint> kps;
+    cv::Mat desc;
+    orb.Extract(image, &kps, &desc);
+    EXPECT_TRUE(kps.empty()) << value;
+    EXPECT_EQ(desc.rows, 0) << value;
+    EXPECT_EQ(desc.cols, 32) << value;
+    EXPECT_EQ(desc.type(), CV_8U) << value;
+  }
+}
+
+// Texture in one corner of a plain wall: the fine levels of the pyramid find corners there; on
+// the coarse ones the corner falls inside the border that descriptors need, and they find none. A
+// level without keypoints gives an empty descriptor matrix, which once ended the whole run
+// (OpenCV's vconcat refuses it).
+TEST(OrbExtractor, PyramidLevelsWithoutCornersAreLeftOut) {
+  cv::Mat image(480, 640, CV_8UC1, cv::Scalar(128));
+  cv::Mat patch = image(cv::Rect(20, 20, 40, 40));
+  cv::RNG rng(7);
+  rng.fill(patch, cv::RNG::UNIFORM, 0, 256);
+  const OrbExtractor orb(OrbOptions{});
+  std::vector<cv::KeyPoint> kps;
+  cv::Mat desc;
+  orb.Extract(image, &kps, &desc);
+  std::set<int> levels;
+  for (const auto& k : kps) levels.insert(k.octave);
+  ASSERT_FALSE(kps.empty());
+  EXPECT_TRUE(levels.count(0));
+  EXPECT_LT(levels.size(), 8u) << "every level found corners: the test image is too rich";
+  EXPECT_EQ(desc.rows, static_cast<int>(kps.size()));
+  EXPECT_EQ(desc.cols, 32);
+}
+
+TEST(DescriptorDistance, CountsDifferingBits) {
+  cv::RNG rng(3);
+  for (int trial = 0; trial < 200; ++trial) {
+    uint8_t a[32], b[32];
+    for (int k = 0; k < 32; ++k) {
+      a[k] = static_cast<uint8_t>(rng.uniform(0, 256));
+      b[k] = static_cast<uint8_t>(rng.uniform(0, 256));
+    }
+    int expected = 0;
+    for (int k = 0; k < 32; ++k) {
+      for (int bit = 0; bit < 8; ++bit) expected += ((a[k] ^ b[k]) >> bit) & 1;
+    }
+    // Unaligned rows too: descriptors of a cv::Mat row need not be 8-byte aligned.
+    uint8_t shifted[33];
+    std::memcpy(shifted + 1, b, 32);
+    EXPECT_EQ(DescriptorDistance(a, b), expected);
+    EXPECT_EQ(DescriptorDistance(a, shifted + 1), expected);
+  }
+  uint8_t zeros[32] = {}, ones[32];
+  std::memset(ones, 0xFF, 32);
+  EXPECT_EQ(DescriptorDistance(zeros, ones), 256);
+  EXPECT_EQ(DescriptorDistance(ones, ones), 0);
 }
 
 }  // namespace
