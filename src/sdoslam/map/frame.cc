@@ -76,33 +76,41 @@ void Frame::SetLabels(const cv::Mat& label_image) {
       if (label[i] != 0) map_points[i] = nullptr;
     }
   }
-  BuildGrid();
 }
 
 void Frame::MarkDynamic(int i, uint8_t dynamic_label) {
   CV_Assert(dynamic_label != 0);
   const size_t k = static_cast<size_t>(i);
-  label[k] = dynamic_label;
+  label[k] = dynamic_label;  // FeaturesInArea skips it from now on
   map_points[k] = nullptr;
-  const int gx = static_cast<int>((undistorted[k].x - geometry->min_x) * geometry->grid_cell_inv_w);
-  const int gy = static_cast<int>((undistorted[k].y - geometry->min_y) * geometry->grid_cell_inv_h);
-  if (gx >= 0 && gy >= 0 && gx < FrameGeometry::kGridCols && gy < FrameGeometry::kGridRows) {
-    auto& cell = grid_[static_cast<size_t>(gy * FrameGeometry::kGridCols + gx)];
-    cell.erase(std::remove(cell.begin(), cell.end(), i), cell.end());
-  }
+}
+
+int Frame::GridCell(int i) const {
+  const FrameGeometry& g = *geometry;
+  const size_t k = static_cast<size_t>(i);
+  const int gx = static_cast<int>((undistorted[k].x - g.min_x) * g.grid_cell_inv_w);
+  const int gy = static_cast<int>((undistorted[k].y - g.min_y) * g.grid_cell_inv_h);
+  if (gx < 0 || gy < 0 || gx >= FrameGeometry::kGridCols || gy >= FrameGeometry::kGridRows)
+    return -1;
+  return gy * FrameGeometry::kGridCols + gx;
 }
 
 void Frame::BuildGrid() {
-  grid_.assign(FrameGeometry::kGridCols * FrameGeometry::kGridRows, {});
+  // Compressed rows (offsets + one index array): two allocations per frame instead of one per
+  // cell, which matters because every keyframe keeps its grid.
+  constexpr int kCells = FrameGeometry::kGridCols * FrameGeometry::kGridRows;
+  grid_start_.assign(kCells + 1, 0);
   for (size_t i = 0; i < size(); ++i) {
-    if (label[i] != 0) continue;
-    const int gx =
-        static_cast<int>((undistorted[i].x - geometry->min_x) * geometry->grid_cell_inv_w);
-    const int gy =
-        static_cast<int>((undistorted[i].y - geometry->min_y) * geometry->grid_cell_inv_h);
-    if (gx >= 0 && gy >= 0 && gx < FrameGeometry::kGridCols && gy < FrameGeometry::kGridRows) {
-      grid_[static_cast<size_t>(gy * FrameGeometry::kGridCols + gx)].push_back(static_cast<int>(i));
-    }
+    const int cell = GridCell(static_cast<int>(i));
+    if (cell >= 0) ++grid_start_[static_cast<size_t>(cell) + 1];
+  }
+  for (int c = 0; c < kCells; ++c) grid_start_[c + 1] += grid_start_[c];
+  grid_features_.assign(static_cast<size_t>(grid_start_.back()), 0);
+  std::vector<int> next(grid_start_.begin(), grid_start_.end() - 1);
+  for (size_t i = 0; i < size(); ++i) {
+    const int cell = GridCell(static_cast<int>(i));
+    if (cell >= 0)
+      grid_features_[static_cast<size_t>(next[static_cast<size_t>(cell)]++)] = static_cast<int>(i);
   }
 }
 
@@ -120,7 +128,10 @@ std::vector<int> Frame::FeaturesInArea(double u, double v, double radius, int mi
                           static_cast<int>(std::ceil((v - g.min_y + radius) * g.grid_cell_inv_h)));
   for (int gy = y0; gy <= y1; ++gy) {
     for (int gx = x0; gx <= x1; ++gx) {
-      for (int i : grid_[static_cast<size_t>(gy * FrameGeometry::kGridCols + gx)]) {
+      const size_t cell = static_cast<size_t>(gy * FrameGeometry::kGridCols + gx);
+      for (int k = grid_start_[cell]; k < grid_start_[cell + 1]; ++k) {
+        const int i = grid_features_[static_cast<size_t>(k)];
+        if (label[static_cast<size_t>(i)] != 0) continue;  // dynamic: never matched
         const int level = keypoints[static_cast<size_t>(i)].octave;
         if ((min_level >= 0 && level < min_level) || (max_level >= 0 && level > max_level))
           continue;
@@ -148,6 +159,20 @@ PointObservation Frame::Observation(int i) const {
   m.right_u = right_u[k];
   m.inv_sigma2 = geometry->inv_sigma2[static_cast<size_t>(keypoints[k].octave)];
   return m;
+}
+
+void Frame::ReleaseFeatures() {
+  // Swapping with empty containers frees the memory; clear() would keep the capacity.
+  std::vector<cv::KeyPoint>().swap(keypoints);
+  std::vector<cv::Point2f>().swap(undistorted);
+  std::vector<float>().swap(depth);
+  std::vector<float>().swap(right_u);
+  descriptors = cv::Mat(0, 32, CV_8U);
+  std::vector<MapPoint*>().swap(map_points);
+  std::vector<bool>().swap(outlier);
+  std::vector<uint8_t>().swap(label);
+  std::vector<int>(grid_start_.size(), 0).swap(grid_start_);
+  std::vector<int>().swap(grid_features_);
 }
 
 }  // namespace sdoslam

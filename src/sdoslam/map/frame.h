@@ -39,8 +39,8 @@ class Frame {
         std::shared_ptr<const FrameGeometry> geometry, const OrbExtractor& extractor);
 
   size_t size() const { return keypoints.size(); }
-  // Indices of features within `radius` px of (u, v) (undistorted), on levels [min_level,
-  // max_level] (-1: any), in ascending order.
+  // Indices of static features within `radius` px of (u, v) (undistorted), on levels
+  // [min_level, max_level] (-1: any), in ascending order.
   std::vector<int> FeaturesInArea(double u, double v, double radius, int min_level = -1,
                                   int max_level = -1) const;
   bool HasDepth(int i) const { return depth[static_cast<size_t>(i)] > 0; }
@@ -48,15 +48,18 @@ class Frame {
   // tracking and mapping never match them nor make map points from them.
   bool IsStatic(int i) const { return label[static_cast<size_t>(i)] == 0; }
   // Labels each feature from `label_image` (CV_8U, image size, 0 = static) at its detected
-  // position and removes the non-static ones from the position grid. An empty image clears
-  // all labels. Call before tracking the frame.
+  // position; FeaturesInArea leaves the non-static ones out. An empty image clears all labels.
+  // Call before tracking the frame.
   void SetLabels(const cv::Mat& label_image);
   // Gives feature i a dynamic label after tracking has started on the frame (the consistency
-  // check): drops its map point and takes it out of the grid.
+  // check): drops its map point, and FeaturesInArea leaves it out.
   void MarkDynamic(int i, uint8_t dynamic_label);
   // Keypoint i back-projected with its depth, in world coordinates at the frame's pose.
   Eigen::Vector3d UnprojectWorld(int i) const;
   PointObservation Observation(int i) const;
+  // Frees every feature (the frame keeps its index, timestamp and pose): for culled keyframes,
+  // so that a long run's memory follows the map, not the number of keyframes ever made.
+  void ReleaseFeatures();
   Eigen::Vector3d CameraCentre() const { return T_camera_world.inverse().translation(); }
 
   size_t index;
@@ -73,8 +76,11 @@ class Frame {
   Eigen::Isometry3d T_camera_world = Eigen::Isometry3d::Identity();
 
  private:
-  void BuildGrid();  // static features only
-  std::vector<std::vector<int>> grid_;
+  void BuildGrid();
+  int GridCell(int i) const;  // -1 outside the grid
+  // Features per grid cell: those of cell c are grid_features_[grid_start_[c] ..
+  // grid_start_[c + 1]).
+  std::vector<int> grid_start_, grid_features_;
 };
 
 }  // namespace sdoslam

@@ -15,30 +15,50 @@ int MapPoint::PredictLevel(double distance, const FrameGeometry& g) const {
 }
 
 void MapPoint::UpdateFromObservations() {
+  UpdateDescriptor();
+  UpdateNormalAndDepth();
+}
+
+void MapPoint::UpdateDescriptor() {
   if (bad || observations.empty()) return;
   std::vector<const uint8_t*> descriptors;
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  descriptors.reserve(observations.size());
   for (const auto& [kf_id, obs] : observations) {
     const auto& [kf, i] = obs;
     descriptors.push_back(kf->frame.descriptors.ptr<uint8_t>(i));
-    sum += (position - kf->CameraCentre()).normalized();
   }
-  normal = sum.normalized();
-  // Representative descriptor: least median distance to the others.
+  // Representative descriptor: least median distance to the others (the first on ties).
   const size_t n = descriptors.size();
+  std::vector<int> distances(n * n, 0);
+  for (size_t a = 0; a < n; ++a) {
+    for (size_t b = a + 1; b < n; ++b) {
+      distances[a * n + b] = distances[b * n + a] =
+          DescriptorDistance(descriptors[a], descriptors[b]);
+    }
+  }
   size_t best = 0;
   int best_median = 1 << 30;
+  const size_t middle = (n - 1) / 2;
+  std::vector<int> row(n);
   for (size_t a = 0; a < n; ++a) {
-    std::vector<int> d;
-    for (size_t b = 0; b < n; ++b) d.push_back(DescriptorDistance(descriptors[a], descriptors[b]));
-    std::sort(d.begin(), d.end());
-    const int median = d[(n - 1) / 2];
-    if (median < best_median) {
-      best_median = median;
+    std::copy(distances.begin() + static_cast<long>(a * n),
+              distances.begin() + static_cast<long>((a + 1) * n), row.begin());
+    std::nth_element(row.begin(), row.begin() + static_cast<long>(middle), row.end());
+    if (row[middle] < best_median) {
+      best_median = row[middle];
       best = a;
     }
   }
   descriptor = cv::Mat(1, 32, CV_8U, const_cast<uint8_t*>(descriptors[best])).clone();
+}
+
+void MapPoint::UpdateNormalAndDepth() {
+  if (bad || observations.empty()) return;
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const auto& [kf_id, obs] : observations) {
+    sum += (position - obs.first->CameraCentre()).normalized();
+  }
+  normal = sum.normalized();
   const auto ref = observations.find(reference->id);
   const auto& [kf, feature] =
       ref != observations.end() ? ref->second : observations.begin()->second;
@@ -65,16 +85,47 @@ int KeyFrame::TrackedPoints(int min_observations) const {
   return n;
 }
 
+Eigen::Isometry3d ComposeWithReference(const KeyFrame* reference,
+                                       const Eigen::Isometry3d& T_camera_reference) {
+  Eigen::Isometry3d T = T_camera_reference;
+  while (reference->bad && reference->parent != nullptr) {
+    T = T * reference->T_camera_parent;
+    reference = reference->parent;
+  }
+  return T * reference->pose();
+}
+
 KeyFrame* Map::AddKeyFrame(Frame frame) {
   const uint64_t id = next_keyframe_id_++;
   auto [it, inserted] = keyframes_.emplace(id, std::make_unique<KeyFrame>(id, std::move(frame)));
+  ++good_keyframes_;
   return it->second.get();
 }
 
 MapPoint* Map::AddMapPoint(const Eigen::Vector3d& position, KeyFrame* reference) {
   const uint64_t id = next_point_id_++;
   auto [it, inserted] = points_.emplace(id, std::make_unique<MapPoint>(id, position, reference));
+  ++good_points_;
   return it->second.get();
+}
+
+void Map::Bury(MapPoint* point) {
+  point->bad = true;
+  --good_points_;
+  graveyard_.push_back({point, finished_frames_, next_keyframe_id_});
+}
+
+size_t Map::CollectGarbage() {
+  // Graves are in culling order, so both conditions hold for a prefix.
+  size_t freed = 0;
+  while (freed < graveyard_.size()) {
+    const Grave& g = graveyard_[freed];
+    if (finished_frames_ <= g.finished_frames || inserted_keyframes_ < g.keyframes_made) break;
+    points_.erase(g.point->id);
+    ++freed;
+  }
+  graveyard_.erase(graveyard_.begin(), graveyard_.begin() + static_cast<long>(freed));
+  return freed;
 }
 
 void Map::AddObservation(MapPoint* point, KeyFrame* kf, int feature) {
@@ -95,7 +146,7 @@ void Map::EraseObservation(MapPoint* point, KeyFrame* kf) {
 
 void Map::SetBad(MapPoint* point) {
   if (point->bad) return;
-  point->bad = true;
+  Bury(point);
   for (const auto& [kf_id, obs] : point->observations) {
     obs.first->frame.map_points[static_cast<size_t>(obs.second)] = nullptr;
   }
@@ -106,8 +157,7 @@ void Map::Replace(MapPoint* point, MapPoint* by) {
   if (point == by || point->bad) return;
   const auto observations = point->observations;
   point->observations.clear();
-  point->bad = true;
-  point->replaced_by = by;
+  Bury(point);
   for (const auto& [kf_id, obs] : observations) {
     auto [kf, feature] = obs;
     if (by->observations.count(kf_id)) {
@@ -162,12 +212,21 @@ void Map::UpdateConnections(KeyFrame* kf) {
     sort_best(other);
   }
   sort_best(kf);
-  if (kf->parent == nullptr && kf->id != 0 && best_count > 0) kf->parent = by_id[best_id];
+  if (kf->parent == nullptr && kf->id != 0 && best_count > 0) SetParent(kf, by_id[best_id]);
 }
 
-void Map::SetBad(KeyFrame* kf) {
-  if (kf->id == 0 || kf->bad) return;
+void Map::SetParent(KeyFrame* kf, KeyFrame* parent) {
+  if (kf->parent != nullptr) kf->parent->children.erase(kf->id);
+  kf->parent = parent;
+  if (parent != nullptr) parent->children[kf->id] = kf;
+}
+
+bool Map::SetBad(KeyFrame* kf) {
+  if (kf->id == 0 || kf->bad || kf->parent == nullptr) return false;
+  // Invariant: parents are good, so the parent is the first good ancestor.
+  KeyFrame* parent = kf->parent;
   kf->bad = true;
+  --good_keyframes_;
   for (MapPoint* p : std::vector<MapPoint*>(kf->frame.map_points)) {
     if (p != nullptr && !p->bad) EraseObservation(p, kf);
   }
@@ -180,27 +239,19 @@ void Map::SetBad(KeyFrame* kf) {
   }
   kf->covisibility.clear();
   kf->best_covisible.clear();
-  // Children hang from this keyframe's parent now; frames tracked relative to it keep their
-  // pose through T_camera_parent.
-  KeyFrame* parent = kf->parent;
-  while (parent != nullptr && parent->bad) parent = parent->parent;
-  for (auto& [id, other] : keyframes_) {
-    if (other->parent == kf) other->parent = parent;
+  // Frames tracked relative to this keyframe, or to a culled child of it, keep their pose
+  // through T_camera_parent: this keyframe's own, and each culled child's composed with it
+  // (the child skips this keyframe from now on).
+  kf->T_camera_parent = kf->pose() * parent->pose().inverse();
+  const std::map<uint64_t, KeyFrame*> children = std::move(kf->children);
+  kf->children.clear();
+  for (const auto& [id, child] : children) {
+    if (child->bad) child->T_camera_parent = child->T_camera_parent * kf->T_camera_parent;
+    child->parent = parent;
+    parent->children[id] = child;
   }
-  if (parent != nullptr) kf->T_camera_parent = kf->pose() * parent->pose().inverse();
-  kf->parent = parent;
-}
-
-size_t Map::GoodKeyFrames() const {
-  size_t n = 0;
-  for (const auto& [id, kf] : keyframes_) n += !kf->bad;
-  return n;
-}
-
-size_t Map::GoodPoints() const {
-  size_t n = 0;
-  for (const auto& [id, p] : points_) n += !p->bad;
-  return n;
+  kf->frame.ReleaseFeatures();
+  return true;
 }
 
 }  // namespace sdoslam

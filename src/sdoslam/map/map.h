@@ -27,15 +27,19 @@ class MapPoint {
   int visible = 1, found = 1;  // times predicted in view / matched by tracking
   int inconsistent = 0;  // times judged moved since its last consistent match (consistency check)
   bool bad = false;
-  MapPoint* replaced_by = nullptr;
   uint64_t last_seen_frame = static_cast<uint64_t>(-1);  // bookkeeping for local-map search
-  uint64_t fuse_target = static_cast<uint64_t>(-1);
 
   double FoundRatio() const { return static_cast<double>(found) / visible; }
   // Pyramid level at which a point this far away should appear.
   int PredictLevel(double distance, const FrameGeometry& g) const;
   // Recomputes descriptor, normal and distance range from the observations.
   void UpdateFromObservations();
+  // The observation's descriptor with the least median distance to the others: quadratic in
+  // the observations, so only when they change.
+  void UpdateDescriptor();
+  // Mean viewing direction and scale-invariance range: after the position or the observations
+  // change.
+  void UpdateNormalAndDepth();
 };
 
 class KeyFrame {
@@ -46,10 +50,14 @@ class KeyFrame {
   Frame frame;  // features, depth, matched map points, pose (T_camera_world)
   std::map<uint64_t, int> covisibility;   // keyframe id -> shared map points
   std::vector<KeyFrame*> best_covisible;  // by weight, then id
-  KeyFrame* parent = nullptr;             // spanning tree
+  // Spanning tree. Invariant: a keyframe's parent is never culled (bad); a culled keyframe
+  // keeps a parent so that frames tracked against it can still be placed.
+  KeyFrame* parent = nullptr;
+  std::map<uint64_t, KeyFrame*> children;  // by id, culled ones included
   bool bad = false;
-  Eigen::Isometry3d T_camera_parent = Eigen::Isometry3d::Identity();  // kept when culled
-  uint64_t local_ba_for = static_cast<uint64_t>(-1), fixed_ba_for = static_cast<uint64_t>(-1);
+  // Set when culled: this keyframe's pose relative to its parent, re-composed whenever the
+  // parent is culled in turn, so pose = T_camera_parent * parent->pose() holds across culling.
+  Eigen::Isometry3d T_camera_parent = Eigen::Isometry3d::Identity();
 
   const Eigen::Isometry3d& pose() const { return frame.T_camera_world; }
   Eigen::Vector3d CameraCentre() const { return frame.CameraCentre(); }
@@ -57,10 +65,22 @@ class KeyFrame {
   int TrackedPoints(int min_observations) const;
 };
 
-// Owns keyframes and map points; ids increase from 0 and are never reused. Culled elements are
-// flagged bad and kept (frames may still point at them) until the map is destroyed.
+// The world pose of a camera tracked relative to `reference`, following culled references to
+// their parents: T_camera_reference * T_reference_parent * ... * first good ancestor's pose.
+Eigen::Isometry3d ComposeWithReference(const KeyFrame* reference,
+                                       const Eigen::Isometry3d& T_camera_reference);
+
+// Owns keyframes and map points; ids increase from 0 and are never reused.
+// Culled keyframes are flagged bad and kept, with their features released (frames tracked
+// against them still need their place in the spanning tree): a few hundred bytes each.
+// Culled map points are flagged bad and freed by CollectGarbage() once nobody can still hold a
+// pointer to them (see there).
 class Map {
  public:
+  Map() = default;
+  Map(const Map&) = delete;
+  Map& operator=(const Map&) = delete;
+
   KeyFrame* AddKeyFrame(Frame frame);
   MapPoint* AddMapPoint(const Eigen::Vector3d& position, KeyFrame* reference);
   void AddObservation(MapPoint* point, KeyFrame* keyframe, int feature);
@@ -68,18 +88,46 @@ class Map {
   // Replaces `point` by `by` everywhere it is observed (fusing duplicates).
   void Replace(MapPoint* point, MapPoint* by);
   void SetBad(MapPoint* point);
+  // Recomputes the keyframe's covisibility edges (both sides) and, for a keyframe without a
+  // parent, chooses the most covisible one as its parent.
   void UpdateConnections(KeyFrame* keyframe);
-  void SetBad(KeyFrame* keyframe);
+  // Culls a keyframe: its observations go, its children (culled ones included) hang from its
+  // parent, and its features are released. The first keyframe and a keyframe without a parent
+  // are never culled. Returns whether it was culled.
+  bool SetBad(KeyFrame* keyframe);
+
+  // Lifetime of culled map points. A point culled while tracking holds pointers to it (the
+  // last frame, a keyframe queued for mapping) must outlive them: tracking reports each
+  // finished frame, mapping each inserted keyframe (in creation order), and a culled point is
+  // freed once a frame has been finished after its culling and every keyframe made before its
+  // culling has been inserted. Call CollectGarbage() where no pointer to a culled point is held
+  // across the call (local mapping calls it before each keyframe). Returns the points freed.
+  void FrameFinished() { ++finished_frames_; }
+  void KeyFrameInserted(const KeyFrame* keyframe) { inserted_keyframes_ = keyframe->id + 1; }
+  size_t CollectGarbage();
 
   const std::map<uint64_t, std::unique_ptr<KeyFrame>>& keyframes() const { return keyframes_; }
   const std::map<uint64_t, std::unique_ptr<MapPoint>>& points() const { return points_; }
-  size_t GoodKeyFrames() const;
-  size_t GoodPoints() const;
+  size_t GoodKeyFrames() const { return good_keyframes_; }
+  size_t GoodPoints() const { return good_points_; }
+  // Culled points not yet freed.
+  size_t PendingGarbage() const { return graveyard_.size(); }
 
  private:
+  void SetParent(KeyFrame* keyframe, KeyFrame* parent);
+  void Bury(MapPoint* point);
+
   std::map<uint64_t, std::unique_ptr<KeyFrame>> keyframes_;
   std::map<uint64_t, std::unique_ptr<MapPoint>> points_;
   uint64_t next_keyframe_id_ = 0, next_point_id_ = 0;
+  size_t good_keyframes_ = 0, good_points_ = 0;
+  uint64_t finished_frames_ = 0, inserted_keyframes_ = 0;
+  struct Grave {
+    MapPoint* point;
+    uint64_t finished_frames;  // when it was culled
+    uint64_t keyframes_made;
+  };
+  std::vector<Grave> graveyard_;  // in culling order
 };
 
 }  // namespace sdoslam

@@ -40,7 +40,20 @@ Tracker::Tracker(Map* map, const TrackerOptions& options) : map_(map), options_(
 
 TrackingResult Tracker::Track(Frame frame, KeyFrame** new_keyframe, bool mapping_idle,
                               bool mapping_accepts, const ConsistencyInput* consistency) {
+  TrackingResult result =
+      TrackFrame(std::move(frame), new_keyframe, mapping_idle, mapping_accepts, consistency);
+  // Nothing of this frame's matching is held past this point (see Map::CollectGarbage).
+  local_points_.clear();
+  map_->FrameFinished();
+  return result;
+}
+
+TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool mapping_idle,
+                                   bool mapping_accepts, const ConsistencyInput* consistency) {
   if (!options_.consistency.enabled) consistency = nullptr;
+  // Local mapping may have culled the reference keyframe: its features are gone, its parent
+  // (never culled) stands in for it.
+  while (reference_ != nullptr && reference_->bad) reference_ = reference_->parent;
   *new_keyframe = nullptr;
   ++frame_stamp_;
   TrackingResult result;

@@ -47,6 +47,7 @@ struct TrackingResult {
   int matches = 0;  // map points matched before the final pose optimisation
   int inliers = 0;  // matched map points after it
   bool keyframe = false;
+  size_t keyframes_alive = 0, map_points_alive = 0;  // the map's size after this frame
   Eigen::Isometry3d T_camera_world = Eigen::Isometry3d::Identity();
   // Every feature's detected position, its front-end label (0 = static) and whether it ended
   // matched to a map point as an inlier: for overlays and feature-level evaluation.
@@ -95,6 +96,8 @@ class Tracker {
   TrackingState state() const { return state_; }
 
  private:
+  TrackingResult TrackFrame(Frame frame, KeyFrame** new_keyframe, bool mapping_idle,
+                            bool mapping_accepts, const ConsistencyInput* consistency);
   bool Initialize(Frame& frame);
   bool TrackWithMotionModel(Frame& frame);
   bool TrackReferenceKeyFrame(Frame& frame);
