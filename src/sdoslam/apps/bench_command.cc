@@ -9,6 +9,7 @@
 #include "sdoslam/apps/pipeline.h"
 #include "sdoslam/apps/run_command.h"
 #include "sdoslam/core/error.h"
+#include "sdoslam/core/memory.h"
 #include "sdoslam/synth/sequence.h"
 
 namespace sdoslam {
@@ -17,6 +18,10 @@ namespace {
 struct BenchArgs {
   std::string dataset;
   std::string config;
+  std::string scenario = "static_room";  // the built-in sequence, without --dataset
+  std::string motion = "halfsphere";
+  int frames = 150;
+  int block = 0;  // > 0: the soak report, per block of this many frames
   int runs = 5;
   bool threaded = false;
   std::string work = "sdoslam_bench";
@@ -25,6 +30,73 @@ struct BenchArgs {
 
 double Median(const std::vector<double>& v) { return ComputeErrorStats(v).median; }
 
+double Percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[static_cast<size_t>(q * static_cast<double>(v.size() - 1) + 0.5)];
+}
+
+// The state at the end of one block of frames, sampled while the run goes on.
+struct BlockEnd {
+  size_t last_frame = 0;
+  double first_timestamp = 0, last_timestamp = 0;
+  size_t keyframes_alive = 0, map_points_alive = 0;
+  size_t resident_bytes = 0;
+  int lost = 0;
+};
+
+// The soak report: does a long run stay as fast, as small and as accurate as a short one?
+// Per block: local mapping per keyframe (median, p95, and the median of each stage), the map's
+// size and the process's resident memory at the block's end, and the frame ATE of the block's
+// frames (the whole run aligned once).
+void PrintBlocks(const RunSummary& s, const std::vector<BlockEnd>& blocks) {
+  std::cout << fmt::format(
+      "{:>11} {:>4} {:>8} {:>8} {:>6} {:>6} {:>6} {:>6} {:>6} {:>5} {:>6} {:>7} {:>8} {:>5}\n",
+      "frames", "kf", "map_med", "map_p95", "insert", "triang", "fuse", "ba", "cull", "alive",
+      "points", "rss_MB", "ATE_mm", "lost");
+  size_t first = 0;
+  for (const BlockEnd& b : blocks) {
+    std::vector<double> ms, insert, triangulate, fuse, ba, cull;
+    for (const MappingRecord& m : s.mapping) {
+      if (m.frame_index < first || m.frame_index > b.last_frame) continue;
+      ms.push_back(m.ms);
+      insert.push_back(m.result.insert_ms);
+      triangulate.push_back(m.result.triangulate_ms);
+      fuse.push_back(m.result.fuse_ms);
+      ba.push_back(m.result.ba_ms);
+      cull.push_back(m.result.cull_ms);
+    }
+    std::vector<double> errors;
+    if (s.evaluation) {
+      const AteResult& ate = s.evaluation->ate;
+      for (size_t k = 0; k < ate.errors.size(); ++k) {
+        if (ate.timestamps[k] >= b.first_timestamp - 1e-6 &&
+            ate.timestamps[k] <= b.last_timestamp + 1e-6)
+          errors.push_back(ate.errors[k]);
+      }
+    }
+    std::cout << fmt::format(
+        "{:>5}-{:<5} {:>4} {:>8.1f} {:>8.1f} {:>6.1f} {:>6.1f} {:>6.1f} {:>6.1f} {:>6.1f} {:>5} "
+        "{:>6} {:>7.1f} {:>8} {:>5}\n",
+        first, b.last_frame, ms.size(), Median(ms), Percentile(ms, 0.95), Median(insert),
+        Median(triangulate), Median(fuse), Median(ba), Median(cull), b.keyframes_alive,
+        b.map_points_alive, static_cast<double>(b.resident_bytes) / (1 << 20),
+        errors.empty() ? "-" : fmt::format("{:.1f}", 1000 * ComputeErrorStats(errors).rmse),
+        b.lost);
+    first = b.last_frame + 1;
+  }
+  if (s.evaluation) {
+    const ErrorStats& f = s.evaluation->ate.translation;
+    std::cout << fmt::format("frame ATE {:.1f} mm (max {:.1f} mm)", 1000 * f.rmse, 1000 * f.max);
+    if (s.keyframe_evaluation) {
+      std::cout << fmt::format("; keyframe ATE {:.1f} mm ({} keyframes alive)",
+                               1000 * s.keyframe_evaluation->ate.translation.rmse,
+                               s.keyframe_trajectory.size());
+    }
+    std::cout << '\n';
+  }
+}
+
 // Runs the same sequence several times and reports the median over runs of each run's median
 // per-frame and per-keyframe times: this machine is noisy, single runs are not worth quoting.
 void RunBench(const BenchArgs& args) {
@@ -32,12 +104,17 @@ void RunBench(const BenchArgs& args) {
   RunOptions base;
   if (dataset.empty()) {
     if (!args.config.empty()) throw Error("--config needs --dataset");
-    dataset = std::filesystem::path(args.work) / "static_room_halfsphere";
+    dataset = std::filesystem::path(args.work) /
+              fmt::format("{}_{}_{}", args.scenario, args.motion, args.frames);
     synth::SynthOptions synth_options;
-    synth_options.scenario = "static_room";
-    synth_options.motion = synth::CameraMotion::kHalfsphere;
-    synth_options.frames = 150;
-    synth::WriteSequence(synth_options, dataset, /*overwrite=*/true);
+    synth_options.scenario = args.scenario;
+    synth_options.motion = synth::ParseCameraMotion(args.motion);
+    synth_options.frames = args.frames;
+    if (!std::filesystem::exists(dataset / "groundtruth.txt")) {  // rendered once, then reused
+      std::cout << fmt::format("rendering {} frames of {} ({})...\n", args.frames, args.scenario,
+                               args.motion);
+      synth::WriteSequence(synth_options, dataset, /*overwrite=*/true);
+    }
     base.camera = synth::SyntheticCamera();
   } else {
     if (args.config.empty()) throw Error("--config is required with --dataset");
@@ -52,7 +129,25 @@ void RunBench(const BenchArgs& args) {
   for (int run = 0; run < args.runs; ++run) {
     RunOptions run_options = base;
     run_options.out = std::filesystem::path(args.work) / fmt::format("run{}", run);
+    std::vector<BlockEnd> blocks;
+    if (args.block > 0) {
+      run_options.after_frame = [&](const TrackingResult& r, const System&) {
+        const size_t block = r.index / static_cast<size_t>(args.block);
+        if (blocks.size() <= block) {
+          blocks.emplace_back();
+          blocks.back().first_timestamp = r.timestamp;
+        }
+        BlockEnd& b = blocks.back();
+        b.last_frame = r.index;
+        b.last_timestamp = r.timestamp;
+        b.keyframes_alive = r.keyframes_alive;
+        b.map_points_alive = r.map_points_alive;
+        b.lost += r.state == TrackingState::kLost;
+        b.resident_bytes = ResidentBytes();
+      };
+    }
     const RunSummary s = RunOnDataset(run_options);
+    if (args.block > 0) PrintBlocks(s, blocks);
     frame_ms.push_back(s.median_frame_ms);
     mapping_ms.push_back(s.median_mapping_ms);
     total_ms.push_back(s.median_total_ms);
@@ -91,7 +186,18 @@ void AddBenchCommand(CLI::App& app) {
   auto args = std::make_shared<BenchArgs>();
   CLI::App* cmd = app.add_subcommand("bench", "time SLAM runs (medians over repeated runs)");
   cmd->add_option("--dataset", args->dataset,
-                  "sequence (default: a synthetic static_room halfsphere sequence)");
+                  "sequence (default: a synthetic sequence, --scenario, --motion, --frames)");
+  cmd->add_option("--scenario", args->scenario, "built-in sequence: synthetic scenario")
+      ->capture_default_str();
+  cmd->add_option("--motion", args->motion, "built-in sequence: camera motion")
+      ->capture_default_str();
+  cmd->add_option("--frames", args->frames, "built-in sequence: frames (rendered once into --work)")
+      ->check(CLI::Range(10, 100000))
+      ->capture_default_str();
+  cmd->add_option("--block", args->block,
+                  "soak report: per block of this many frames, mapping ms per keyframe (median, "
+                  "p95, stages), keyframes and map points alive, resident memory, frame ATE")
+      ->check(CLI::Range(1, 1000000));
   cmd->add_option("--config", args->config, "config YAML for --dataset");
   cmd->add_option("--runs", args->runs, "number of runs")
       ->check(CLI::Range(1, 100))

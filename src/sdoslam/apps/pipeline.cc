@@ -115,7 +115,7 @@ RunSummary RunOnDataset(const RunOptions& run) {
       "index,timestamp,state,features,features_with_depth,dynamic_features,matches,inliers,"
       "keyframe,check_iterations,check_converged,check_reverted,check_measured,check_dynamic,"
       "culled_points,front_end_ms,segment_ms,detect_ms,flow_ms,classify_ms,features_ms,"
-      "tracking_ms,mapping_ms\n";
+      "tracking_ms,mapping_ms,keyframes,map_points\n";
   std::string feature_log = "index,x,y,label\n";
   std::vector<double> frame_ms, front_end_ms, mapping_ms, total_ms;
   std::vector<double> segment_ms, detect_ms, flow_ms, classify_ms;
@@ -168,12 +168,13 @@ RunSummary RunOnDataset(const RunOptions& run) {
         r.feature_labels.begin(), r.feature_labels.end(), [](uint8_t l) { return l != 0; }));
     log += fmt::format(
         "{},{:.6f},{},{},{},{},{},{},{},{},{},{},{},{},{},"
-        "{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f}\n",
+        "{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{},{}\n",
         i, r.timestamp, ToString(r.state), r.features, r.features_with_depth, dynamic_features,
         r.matches, r.inliers, r.keyframe ? 1 : 0, r.check_iterations, r.check_converged ? 1 : 0,
         r.check_reverted ? 1 : 0, r.check_measured, r.check_dynamic, r.culled_points,
         front_timing.total(), front_timing.segment_ms, front_timing.detect_ms, front_timing.flow_ms,
-        front_timing.classify_ms, timing.features_ms, timing.tracking_ms, timing.mapping_ms);
+        front_timing.classify_ms, timing.features_ms, timing.tracking_ms, timing.mapping_ms,
+        r.keyframes_alive, r.map_points_alive);
     if (!labels.empty() && mask_evaluator) {
       mask_evaluator->AddFrame(rgb_paths[i], labels, r.feature_points, r.feature_labels);
     }
@@ -201,7 +202,9 @@ RunSummary RunOnDataset(const RunOptions& run) {
   }
   slam.Shutdown();  // the mapping thread finishes the queued keyframes
   summary.trajectory = slam.CameraTrajectory();
-  mapping_ms = slam.MappingTimes();
+  summary.mapping = slam.MappingRecords();
+  for (const MappingRecord& m : summary.mapping) mapping_ms.push_back(m.ms);
+  summary.keyframe_trajectory = slam.KeyFrameTrajectory();
   summary.tracked = summary.trajectory.size();
   summary.keyframes = slam.map().GoodKeyFrames();
   summary.map_points = slam.map().GoodPoints();
@@ -215,7 +218,7 @@ RunSummary RunOnDataset(const RunOptions& run) {
   if (mask_evaluator) summary.masks = mask_evaluator->result();
 
   WriteTumTrajectory(run.out / "CameraTrajectory.txt", summary.trajectory);
-  WriteTumTrajectory(run.out / "KeyFrameTrajectory.txt", slam.KeyFrameTrajectory());
+  WriteTumTrajectory(run.out / "KeyFrameTrajectory.txt", summary.keyframe_trajectory);
   WriteFileAtomically(run.out / "config.yaml",
                       [&](std::ostream& o) { o << resolved.c_str() << '\n'; });
   WriteFileAtomically(run.out / "frames.csv", [&](std::ostream& o) { o << log; });
@@ -224,8 +227,12 @@ RunSummary RunOnDataset(const RunOptions& run) {
 
   const auto gt_path = run.dataset / "groundtruth.txt";
   if (std::filesystem::exists(gt_path) && summary.trajectory.size() >= 3) {
-    summary.evaluation =
-        EvaluateEstimate(ReadTumTrajectory(gt_path), summary.trajectory, ToString(run.mode), {});
+    const Trajectory gt = ReadTumTrajectory(gt_path);
+    summary.evaluation = EvaluateEstimate(gt, summary.trajectory, ToString(run.mode), {});
+    if (summary.keyframe_trajectory.size() >= 3) {
+      summary.keyframe_evaluation =
+          EvaluateEstimate(gt, summary.keyframe_trajectory, "keyframes", {});
+    }
   }
   return summary;
 }

@@ -52,8 +52,11 @@ struct RunSummary {
   FrontEndTiming median_front_end_stages;  // each stage's own median
   double median_total_ms = 0;              // front end + features + tracking, per frame
   double median_mapping_ms = 0;            // per keyframe
+  std::vector<MappingRecord> mapping;      // per keyframe, in processing order
   Trajectory trajectory;
+  Trajectory keyframe_trajectory;                // the keyframes alive at the end
   std::optional<EstimateEvaluation> evaluation;  // when the dataset has groundtruth.txt
+  std::optional<EstimateEvaluation> keyframe_evaluation;
   std::optional<MaskEvaluation>
       masks;  // when the dataset has ground-truth masks (not conventional)
 };

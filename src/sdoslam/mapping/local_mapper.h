@@ -13,6 +13,13 @@ struct LocalMapperOptions {
   int triangulation_neighbours = 10;  // covisible keyframes to triangulate new points with
   double min_found_ratio = 0.25;      // recent points found less often than this are culled
   double redundant_ratio = 0.9;       // keyframes with this share of redundant points are culled
+  // The local window, so that a keyframe's cost follows the place, not the length of the run:
+  // local BA refines the new keyframe and its `local_keyframes` most covisible neighbours
+  // (keyframe culling looks at those same neighbours), holding fixed the `fixed_keyframes`
+  // other keyframes that observe most of the window's points. Observations from keyframes
+  // outside both sets are left out of the adjustment.
+  int local_keyframes = 20;
+  int fixed_keyframes = 10;
   BundleAdjustmentOptions bundle_adjustment;
   void Check() const;
 };
@@ -25,6 +32,10 @@ struct MappingResult {
   int local_keyframes = 0, fixed_keyframes = 0, local_points = 0;
   int removed_observations = 0;
   int culled_keyframes = 0;
+  int freed_points = 0;  // culled points whose memory was released
+  // Milliseconds per stage: keyframe insertion and point culling, triangulation, fusion, local
+  // bundle adjustment (its solve without the map lock), keyframe culling.
+  double insert_ms = 0, triangulate_ms = 0, fuse_ms = 0, ba_ms = 0, ba_solve_ms = 0, cull_ms = 0;
 };
 
 // ORB-SLAM's local mapping for RGB-D: insert a keyframe (observations, covisibility), cull
@@ -33,8 +44,9 @@ struct MappingResult {
 class LocalMapper {
  public:
   LocalMapper(Map* map, const LocalMapperOptions& options);
-  // Processes a new keyframe. With `map_mutex`, the map is locked while it is read or changed,
-  // but not while the bundle adjustment is solved (on a copy), so tracking goes on meanwhile.
+  // Processes a new keyframe. Keyframes must come in the order they were made. With
+  // `map_mutex`, the map is locked while it is read or changed, but not while the bundle
+  // adjustment is solved (on a copy), so tracking goes on meanwhile.
   MappingResult Process(KeyFrame* keyframe, std::mutex* map_mutex = nullptr);
 
  private:
@@ -42,6 +54,8 @@ class LocalMapper {
   int CullRecentPoints(KeyFrame* keyframe);
   int TriangulateNewPoints(KeyFrame* keyframe);
   int FuseWithNeighbours(KeyFrame* keyframe);
+  // The keyframe and its most covisible neighbours, at most options_.local_keyframes of them.
+  std::vector<KeyFrame*> LocalWindow(KeyFrame* keyframe) const;
   void LocalBundleAdjustment(KeyFrame* keyframe, MappingResult* result, std::mutex* map_mutex);
   int CullKeyFrames(KeyFrame* keyframe);
 

@@ -50,6 +50,8 @@ SlamOptions ReadSlamOptions(ConfigMap& root) {
   if (auto s = root.Section("mapping")) {
     s->Read("fuse_neighbours", &o.mapping.fuse_neighbours);
     s->Read("redundant_ratio", &o.mapping.redundant_ratio);
+    s->Read("local_keyframes", &o.mapping.local_keyframes);
+    s->Read("fixed_keyframes", &o.mapping.fixed_keyframes);
     s->Read("ba_iterations", &o.mapping.bundle_adjustment.iterations);
     s->Read("ba_refine_iterations", &o.mapping.bundle_adjustment.refine_iterations);
     s->RejectUnknownKeys();
@@ -84,7 +86,9 @@ void WriteSlamOptions(const SlamOptions& o, YAML::Emitter* out) {
   y << YAML::EndMap;
   y << YAML::Key << "mapping" << YAML::Value << YAML::BeginMap << YAML::Key << "fuse_neighbours"
     << YAML::Value << o.mapping.fuse_neighbours << YAML::Key << "redundant_ratio" << YAML::Value
-    << o.mapping.redundant_ratio << YAML::Key << "ba_iterations" << YAML::Value
+    << o.mapping.redundant_ratio << YAML::Key << "local_keyframes" << YAML::Value
+    << o.mapping.local_keyframes << YAML::Key << "fixed_keyframes" << YAML::Value
+    << o.mapping.fixed_keyframes << YAML::Key << "ba_iterations" << YAML::Value
     << o.mapping.bundle_adjustment.iterations << YAML::Key << "ba_refine_iterations" << YAML::Value
     << o.mapping.bundle_adjustment.refine_iterations << YAML::EndMap;
 }
@@ -123,19 +127,26 @@ void System::MappingLoop() {
       mapping_busy_ = true;
     }
     const auto start = std::chrono::steady_clock::now();
-    mapper_->Process(keyframe, &map_mutex_);
+    const MappingResult result = mapper_->Process(keyframe, &map_mutex_);
     const double ms = MsSince(start);
     {
       std::lock_guard<std::mutex> lock(queue_mutex_);
       mapping_busy_ = false;
-      mapping_ms_.push_back(ms);
+      mapping_records_.push_back({keyframe->frame.index, ms, result});
     }
   }
 }
 
 std::vector<double> System::MappingTimes() const {
   std::lock_guard<std::mutex> lock(queue_mutex_);
-  return mapping_ms_;
+  std::vector<double> ms;
+  for (const MappingRecord& r : mapping_records_) ms.push_back(r.ms);
+  return ms;
+}
+
+std::vector<MappingRecord> System::MappingRecords() const {
+  std::lock_guard<std::mutex> lock(queue_mutex_);
+  return mapping_records_;
 }
 
 TrackingResult System::TrackRgbd(size_t index, double timestamp, const cv::Mat& bgr,
@@ -183,14 +194,16 @@ TrackingResult System::TrackRgbd(size_t index, double timestamp, const cv::Mat& 
     std::lock_guard<std::mutex> lock(map_mutex_);
     result = tracker_->Track(std::move(frame), &keyframe, idle, accepts,
                              consistency ? &*consistency : nullptr);
+    result.keyframes_alive = map_->GoodKeyFrames();
+    result.map_points_alive = map_->GoodPoints();
   }
   t.tracking_ms = MsSince(start);
   if (keyframe != nullptr) {
     if (options_.sequential) {
       start = std::chrono::steady_clock::now();
-      mapper_->Process(keyframe);
+      const MappingResult mapped = mapper_->Process(keyframe);
       t.mapping_ms = MsSince(start);
-      mapping_ms_.push_back(t.mapping_ms);
+      mapping_records_.push_back({keyframe->frame.index, t.mapping_ms, mapped});
     } else {
       {
         std::lock_guard<std::mutex> lock(queue_mutex_);
@@ -208,14 +221,9 @@ Trajectory System::CameraTrajectory() const {
   Trajectory out;
   for (const Tracker::TrajectoryEntry& e : tracker_->trajectory()) {
     if (e.reference == nullptr) continue;
-    Eigen::Isometry3d T_camera_reference = e.T_camera_reference;
-    const KeyFrame* reference = e.reference;
     // A culled reference hands over to its parent through the pose it had relative to it.
-    while (reference->bad && reference->parent != nullptr) {
-      T_camera_reference = T_camera_reference * reference->T_camera_parent;
-      reference = reference->parent;
-    }
-    const Eigen::Isometry3d T_camera_world = T_camera_reference * reference->pose();
+    const Eigen::Isometry3d T_camera_world =
+        ComposeWithReference(e.reference, e.T_camera_reference);
     out.push_back({e.timestamp, T_camera_world.inverse()});
   }
   return out;

@@ -41,6 +41,13 @@ struct FrameTiming {
   double features_ms = 0, tracking_ms = 0, mapping_ms = 0;
 };
 
+// Local mapping of one keyframe.
+struct MappingRecord {
+  size_t frame_index = 0;  // the frame the keyframe was made from
+  double ms = 0;
+  MappingResult result;
+};
+
 // The library's face: feed RGB-D frames in order, read trajectories. Local mapping runs inline
 // (sequential) or in a thread fed by a bounded queue; Shutdown() (or the destructor) lets it
 // finish the queued keyframes and joins it.
@@ -73,6 +80,8 @@ class System {
   const Map& map() const { return *map_; }
   // Local mapping time per keyframe, milliseconds, in processing order.
   std::vector<double> MappingTimes() const;
+  // Each processed keyframe's mapping time and statistics, in processing order.
+  std::vector<MappingRecord> MappingRecords() const;
 
  private:
   void MappingLoop();
@@ -90,7 +99,7 @@ class System {
   std::deque<KeyFrame*> queue_;
   bool mapping_busy_ = false;
   bool stop_ = false;
-  std::vector<double> mapping_ms_;
+  std::vector<MappingRecord> mapping_records_;
   std::thread mapping_thread_;
 };
 

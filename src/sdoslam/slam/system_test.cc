@@ -18,9 +18,12 @@ struct RunResult {
   size_t keyframes = 0;
 };
 
+// Changes frame i's images before they are tracked (a covered lens, a failed sensor).
+using Corruption = std::function<void(size_t i, RgbdFrame* frame)>;
+
 RunResult RunSequence(const std::filesystem::path& folder, const CameraOptions& camera,
                       size_t max_frames = 0, const std::set<size_t>& blank_frames = {},
-                      bool sequential = true) {
+                      bool sequential = true, const Corruption& corrupt = nullptr) {
   const TumDataset dataset(folder, camera);
   SlamOptions options;
   options.sequential = sequential;
@@ -33,6 +36,7 @@ RunResult RunSequence(const std::filesystem::path& folder, const CameraOptions& 
       frame.bgr.setTo(cv::Scalar(40, 40, 40));
       frame.depth.setTo(0.0f);
     }
+    if (corrupt) corrupt(i, &frame);
     r.frames.push_back(slam.TrackRgbd(i, frame.timestamp, frame.bgr, frame.depth));
   }
   slam.Shutdown();
@@ -129,6 +133,55 @@ TEST(SlamRobustness, UntrackableFrameIsLostAndTheRunGoesOn) {
   EXPECT_EQ(run.frames[59].state, TrackingState::kOk);
   EXPECT_EQ(run.trajectory.size(), 59u);  // the lost frame is left out, not given a made-up pose
 }
+
+// Frames with nothing to track in the middle of a run: each is lost (or tracked, where enough
+// is left), never fatal, and tracking resumes on the frames after them.
+class UntrackableFrames : public ::testing::TestWithParam<std::string> {};
+
+void Spoil(const std::string& kind, size_t i, RgbdFrame* frame) {
+  if (kind == "black") {
+    frame->bgr.setTo(cv::Scalar(0, 0, 0));
+  } else if (kind == "saturated") {
+    frame->bgr.setTo(cv::Scalar(255, 255, 255));
+  } else if (kind == "uniform") {
+    frame->bgr.setTo(cv::Scalar(90, 120, 150));
+  } else if (kind == "noise") {  // a sensor gone wrong: corners everywhere, none repeatable
+    cv::RNG rng(i);
+    rng.fill(frame->bgr, cv::RNG::UNIFORM, 0, 256);
+    rng.fill(frame->depth, cv::RNG::UNIFORM, 0.5f, 4.0f);
+  } else if (kind == "no_depth") {
+    frame->depth.setTo(0.0f);
+  } else if (kind == "corner_only") {  // texture in one corner: most pyramid levels find nothing
+    const cv::Mat corner = frame->bgr(cv::Rect(20, 20, 40, 40)).clone();
+    frame->bgr.setTo(cv::Scalar(128, 128, 128));
+    corner.copyTo(frame->bgr(cv::Rect(20, 20, 40, 40)));
+  }
+}
+
+TEST_P(UntrackableFrames, AreLostNeverFatalAndTrackingResumes) {
+  const std::string kind = GetParam();
+  testing::TempDir dir;
+  RenderStaticRoom(dir, synth::CameraMotion::kXyz, 80);
+  const std::set<size_t> spoiled{35, 36, 37, 38, 39};
+  const RunResult run =
+      RunSequence(dir / "seq", synth::SyntheticCamera(), 0, {}, true, [&](size_t i, RgbdFrame* f) {
+        if (spoiled.count(i)) Spoil(kind, i, f);
+      });
+  ASSERT_EQ(run.frames.size(), 80u);
+  for (size_t i = 0; i < 35; ++i) EXPECT_EQ(run.frames[i].state, TrackingState::kOk) << i;
+  if (kind != "no_depth") {  // without depth the features still match the map
+    for (size_t i : spoiled) EXPECT_EQ(run.frames[i].state, TrackingState::kLost) << kind << i;
+  }
+  // Back within two frames of the scene's return, and tracked to the end.
+  for (size_t i = 42; i < 80; ++i) EXPECT_EQ(run.frames[i].state, TrackingState::kOk) << kind << i;
+  const AteResult ate =
+      ComputeAte(ReadTumTrajectory(dir / "seq" / "groundtruth.txt"), run.trajectory);
+  EXPECT_LE(ate.translation.rmse, 0.01) << kind;
+}
+
+INSTANTIATE_TEST_SUITE_P(Kinds, UntrackableFrames,
+                         ::testing::Values("black", "saturated", "uniform", "noise", "no_depth",
+                                           "corner_only"));
 
 TEST(SlamOptionsTest, ConfigSectionsAreReadAndUnknownKeysRejected) {
   ConfigMap good =
