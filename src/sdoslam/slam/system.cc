@@ -40,6 +40,7 @@ SlamOptions ReadSlamOptions(ConfigMap& root) {
     s->Read("max_frames_between_keyframes", &o.tracking.max_frames_between_keyframes);
     s->Read("reference_ratio", &o.tracking.reference_ratio);
     s->Read("projection_radius", &o.tracking.projection_radius);
+    s->Read("relocalization_candidates", &o.tracking.relocalization_candidates);
     s->RejectUnknownKeys();
   }
   if (auto s = root.Section("consistency")) {
@@ -76,9 +77,10 @@ void WriteSlamOptions(const SlamOptions& o, YAML::Emitter* out) {
     << YAML::EndMap;
   y << YAML::Key << "tracking" << YAML::Value << YAML::BeginMap << YAML::Key << "min_inliers"
     << YAML::Value << o.tracking.min_inliers << YAML::Key << "max_frames_between_keyframes"
-    << YAML::Value << o.tracking.max_frames_between_keyframes << YAML::Key << "reference_ratio"
-    << YAML::Value << o.tracking.reference_ratio << YAML::Key << "projection_radius" << YAML::Value
-    << o.tracking.projection_radius << YAML::EndMap;
+    << YAML::Value << o.tracking.max_frames_between_keyframes << YAML::Key
+    << "relocalization_candidates" << YAML::Value << o.tracking.relocalization_candidates
+    << YAML::Key << "reference_ratio" << YAML::Value << o.tracking.reference_ratio << YAML::Key
+    << "projection_radius" << YAML::Value << o.tracking.projection_radius << YAML::EndMap;
   y << YAML::Key << "consistency" << YAML::Value << YAML::BeginMap;
   SceneFlowOptions::VisitFields(o.tracking.consistency, [&](const char* key, const auto& value) {
     y << YAML::Key << key << YAML::Value << value;

@@ -183,6 +183,32 @@ INSTANTIATE_TEST_SUITE_P(Kinds, UntrackableFrames,
                          ::testing::Values("black", "saturated", "uniform", "noise", "no_depth",
                                            "corner_only"));
 
+// The lens is covered while the camera moves on: when the view comes back, the camera is far
+// from where it was lost, beyond what pose optimisation from the last pose can reach.
+// Relocalization matches descriptors with nearby keyframes and solves PnP in RANSAC.
+TEST(SlamRobustness, RelocalizesAfterTheCameraMovedWhileTheViewWasBlocked) {
+  testing::TempDir dir;
+  RenderStaticRoom(dir, synth::CameraMotion::kHalfsphere, 150);
+  const TumDataset dataset(dir / "seq", synth::SyntheticCamera());
+  System slam(synth::SyntheticCamera(), SlamOptions{});
+  std::vector<TrackingResult> results;
+  for (size_t i = 0; i < 150; ++i) {
+    RgbdFrame frame = dataset.Load(i);
+    if (i >= 40 && i < 100) {  // two seconds covered
+      frame.bgr.setTo(cv::Scalar(30, 30, 30));
+      frame.depth.setTo(0.0f);
+    }
+    results.push_back(slam.TrackRgbd(i, frame.timestamp, frame.bgr, frame.depth));
+  }
+  for (size_t i = 40; i < 100; ++i) EXPECT_EQ(results[i].state, TrackingState::kLost) << i;
+  EXPECT_EQ(results[100].state, TrackingState::kOk) << "not relocalized on the first frame back";
+  for (size_t i = 101; i < 150; ++i) EXPECT_EQ(results[i].state, TrackingState::kOk) << i;
+  const Trajectory gt = ReadTumTrajectory(dir / "seq" / "groundtruth.txt");
+  const AteResult ate = ComputeAte(gt, slam.CameraTrajectory());
+  EXPECT_EQ(ate.errors.size(), 90u);
+  EXPECT_LE(ate.translation.rmse, 0.01);
+}
+
 TEST(SlamOptionsTest, ConfigSectionsAreReadAndUnknownKeysRejected) {
   ConfigMap good =
       ConfigMap::LoadString("orb:\n  num_features: 1500\ntracking:\n  min_inliers: 40\n", "c.yaml");

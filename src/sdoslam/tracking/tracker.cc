@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <opencv2/calib3d.hpp>
 #include <set>
 
 #include "sdoslam/core/error.h"
@@ -31,6 +32,7 @@ void TrackerOptions::Check() const {
   if (!(reference_ratio > 0 && reference_ratio < 1))
     throw Error("tracking.reference_ratio must be in (0, 1)");
   if (!(projection_radius > 0)) throw Error("tracking.projection_radius must be positive");
+  if (relocalization_candidates < 0) throw Error("tracking.relocalization_candidates must be >= 0");
   consistency.Check();
 }
 
@@ -94,9 +96,7 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
       ok = TrackReferenceKeyFrame(frame);
     }
   } else {
-    // Lost: try the last keyframe from the last known pose (relocalisation comes later).
-    frame.T_camera_world = last_frame_->T_camera_world;
-    ok = TrackReferenceKeyFrame(frame);
+    ok = Relocalize(frame);
   }
   if (ok) ok = TrackLocalMap(frame, &result);
   if (ok && consistency != nullptr) {
@@ -236,6 +236,77 @@ bool Tracker::TrackReferenceKeyFrame(Frame& frame) {
   const int matches = SearchByDescriptor(frame, *reference_);
   if (matches < 15) return false;
   return OptimizeAndCount(frame) >= 10;
+}
+
+bool Tracker::Relocalize(Frame& frame) {
+  // Candidates: the reference keyframe and its best neighbours, then the keyframes made last.
+  // The reference alone is not enough: when a person fills the view before tracking is lost,
+  // the last keyframes see mostly that person (conventional mode maps it), and the room comes
+  // back in view of older ones. Place recognition (bag of words) will widen this to the whole
+  // map; until then the search stays near where the camera was lost.
+  std::vector<KeyFrame*> candidates;
+  std::set<uint64_t> chosen;
+  auto add = [&](KeyFrame* kf) {
+    if (kf != nullptr && !kf->bad && chosen.insert(kf->id).second) candidates.push_back(kf);
+  };
+  add(reference_);
+  if (reference_ != nullptr) {
+    for (KeyFrame* n : reference_->Covisible(options_.relocalization_candidates)) add(n);
+  }
+  int recent = 0;
+  for (auto it = map_->keyframes().rbegin();
+       it != map_->keyframes().rend() && recent < options_.relocalization_candidates; ++it) {
+    if (!it->second->bad) {
+      add(it->second.get());
+      ++recent;
+    }
+  }
+  const PinholeIntrinsics& k = frame.geometry->intrinsics;
+  const cv::Matx33d K(k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1);
+  for (KeyFrame* kf : candidates) {
+    std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
+    if (SearchByDescriptor(frame, *kf) < 15) continue;
+    // The pose from the matches alone (the last pose may be far off): PnP in RANSAC on the
+    // undistorted keypoints. OpenCV's RANSAC draws from a fixed seed: runs stay repeatable.
+    std::vector<cv::Point3d> object;
+    std::vector<cv::Point2d> image;
+    std::vector<int> feature;
+    for (size_t i = 0; i < frame.size(); ++i) {
+      const MapPoint* p = frame.map_points[i];
+      if (p == nullptr || p->bad) continue;
+      object.emplace_back(p->position.x(), p->position.y(), p->position.z());
+      image.emplace_back(frame.undistorted[i].x, frame.undistorted[i].y);
+      feature.push_back(static_cast<int>(i));
+    }
+    if (object.size() < 15) continue;
+    cv::Mat rvec, tvec;
+    std::vector<int> inliers;
+    if (!cv::solvePnPRansac(object, image, K, cv::noArray(), rvec, tvec, false, 200, 4.0f, 0.99,
+                            inliers, cv::SOLVEPNP_EPNP) ||
+        inliers.size() < 15) {
+      continue;
+    }
+    std::vector<uint8_t> keep(frame.size(), 0);
+    for (int k_in : inliers) keep[static_cast<size_t>(feature[static_cast<size_t>(k_in)])] = 1;
+    for (size_t i = 0; i < frame.size(); ++i) {
+      if (!keep[i]) frame.map_points[i] = nullptr;
+    }
+    cv::Matx33d R;
+    cv::Rodrigues(rvec, R);
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) T.linear()(r, c) = R(r, c);
+      T.translation()(r) = tvec.at<double>(r);
+    }
+    frame.T_camera_world = T;
+    if (OptimizeAndCount(frame) >= 10) {
+      reference_ = kf;
+      return true;
+    }
+  }
+  std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
+  frame.T_camera_world = last_frame_->T_camera_world;
+  return false;
 }
 
 bool Tracker::TrackLocalMap(Frame& frame, TrackingResult* result) {

@@ -20,7 +20,10 @@ struct TrackerOptions {
   int min_close_points = 100;       // keyframe when fewer close points are tracked...
   int close_points_to_create = 70;  // ...and at least this many new ones could be made
   double projection_radius = 15.0;  // px at level 0, motion-model search
-  SceneFlowOptions consistency;     // the scene-flow consistency check and map hygiene
+  // Lost: the reference keyframe, this many of its best neighbours and this many of the last
+  // keyframes are tried, each by descriptor matching and PnP in RANSAC.
+  int relocalization_candidates = 5;
+  SceneFlowOptions consistency;  // the scene-flow consistency check and map hygiene
   void Check() const;
 };
 
@@ -101,6 +104,8 @@ class Tracker {
   bool Initialize(Frame& frame);
   bool TrackWithMotionModel(Frame& frame);
   bool TrackReferenceKeyFrame(Frame& frame);
+  // After tracking was lost: the pose from descriptor matches with nearby keyframes.
+  bool Relocalize(Frame& frame);
   bool TrackLocalMap(Frame& frame, TrackingResult* result);
   int OptimizeAndCount(Frame& frame);
   void MakeTemporaryPoints();
