@@ -47,6 +47,13 @@ class MapTest : public ::testing::Test {
     return T;
   }
 
+  // n unconnected keyframes.
+  std::vector<KeyFrame*> KeyFrames(size_t n) {
+    std::vector<KeyFrame*> kfs;
+    for (size_t i = 0; i < n; ++i) kfs.push_back(AddKeyFrame(i));
+    return kfs;
+  }
+
   // `count` points seen by both keyframes, on features [first, first + count) of each.
   std::vector<MapPoint*> Share(KeyFrame* a, KeyFrame* b, int first, int count) {
     std::vector<MapPoint*> points;
@@ -133,9 +140,8 @@ bool Near(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
 }
 
 TEST_F(MapTest, UpdateConnectionsMakesTheMostCovisibleKeyFrameTheParent) {
-  KeyFrame* k0 = AddKeyFrame(0);
-  KeyFrame* k1 = AddKeyFrame(1);
-  KeyFrame* k2 = AddKeyFrame(2);
+  const std::vector<KeyFrame*> k = KeyFrames(3);
+  KeyFrame *k0 = k[0], *k1 = k[1], *k2 = k[2];
   Share(k0, k1, 0, 30);
   map_.UpdateConnections(k1);
   Share(k0, k2, 100, 20);
@@ -152,9 +158,8 @@ TEST_F(MapTest, UpdateConnectionsMakesTheMostCovisibleKeyFrameTheParent) {
 }
 
 TEST_F(MapTest, EdgesBelowFifteenSharedPointsAreKeptOnlyWhenThereIsNoOther) {
-  KeyFrame* k0 = AddKeyFrame(0);
-  KeyFrame* k1 = AddKeyFrame(1);
-  KeyFrame* k2 = AddKeyFrame(2);
+  const std::vector<KeyFrame*> k = KeyFrames(3);
+  KeyFrame *k0 = k[0], *k1 = k[1], *k2 = k[2];
   Share(k0, k2, 0, 10);
   Share(k1, k2, 100, 30);
   map_.UpdateConnections(k2);
@@ -168,9 +173,8 @@ TEST_F(MapTest, EdgesBelowFifteenSharedPointsAreKeptOnlyWhenThereIsNoOther) {
 }
 
 TEST_F(MapTest, EraseObservationHandsOverTheReferenceAndCullsAPointSeenOnce) {
-  KeyFrame* k0 = AddKeyFrame(0);
-  KeyFrame* k1 = AddKeyFrame(1);
-  KeyFrame* k2 = AddKeyFrame(2);
+  const std::vector<KeyFrame*> k = KeyFrames(3);
+  KeyFrame *k0 = k[0], *k1 = k[1], *k2 = k[2];
   MapPoint* p = Share(k0, k1, 0, 1)[0];
   map_.AddObservation(p, k2, 5);
   map_.EraseObservation(p, k0);
@@ -184,9 +188,8 @@ TEST_F(MapTest, EraseObservationHandsOverTheReferenceAndCullsAPointSeenOnce) {
 }
 
 TEST_F(MapTest, ReplaceMovesEveryObservationOnce) {
-  KeyFrame* k0 = AddKeyFrame(0);
-  KeyFrame* k1 = AddKeyFrame(1);
-  KeyFrame* k2 = AddKeyFrame(2);
+  const std::vector<KeyFrame*> k = KeyFrames(3);
+  KeyFrame *k0 = k[0], *k1 = k[1], *k2 = k[2];
   MapPoint* a = Share(k0, k1, 0, 1)[0];
   MapPoint* b = Share(k1, k2, 10, 1)[0];
   a->visible = 4;
