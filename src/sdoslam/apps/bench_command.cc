@@ -10,6 +10,7 @@
 #include "sdoslam/apps/run_command.h"
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/memory.h"
+#include "sdoslam/synth/scenarios.h"
 #include "sdoslam/synth/sequence.h"
 
 namespace sdoslam {
@@ -106,6 +107,7 @@ void RunBench(const BenchArgs& args) {
     if (!args.config.empty()) throw Error("--config needs --dataset");
     dataset = std::filesystem::path(args.work) /
               fmt::format("{}_{}_{}", args.scenario, args.motion, args.frames);
+    synth::MakeScenario(args.scenario, 1.0);  // an unknown name throws before any rendering
     synth::SynthOptions synth_options;
     synth_options.scenario = args.scenario;
     synth_options.motion = synth::ParseCameraMotion(args.motion);

@@ -117,6 +117,7 @@ void Frame::BuildGrid() {
 std::vector<int> Frame::FeaturesInArea(double u, double v, double radius, int min_level,
                                        int max_level) const {
   std::vector<int> result;
+  if (grid_start_.empty()) return result;  // features released
   const FrameGeometry& g = *geometry;
   const int x0 =
       std::max(0, static_cast<int>(std::floor((u - g.min_x - radius) * g.grid_cell_inv_w)));
@@ -171,7 +172,7 @@ void Frame::ReleaseFeatures() {
   std::vector<MapPoint*>().swap(map_points);
   std::vector<bool>().swap(outlier);
   std::vector<uint8_t>().swap(label);
-  std::vector<int>(grid_start_.size(), 0).swap(grid_start_);
+  std::vector<int>().swap(grid_start_);  // FeaturesInArea finds nothing in a released frame
   std::vector<int>().swap(grid_features_);
 }
 

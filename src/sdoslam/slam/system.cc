@@ -139,13 +139,6 @@ void System::MappingLoop() {
   }
 }
 
-std::vector<double> System::MappingTimes() const {
-  std::lock_guard<std::mutex> lock(queue_mutex_);
-  std::vector<double> ms;
-  for (const MappingRecord& r : mapping_records_) ms.push_back(r.ms);
-  return ms;
-}
-
 std::vector<MappingRecord> System::MappingRecords() const {
   std::lock_guard<std::mutex> lock(queue_mutex_);
   return mapping_records_;

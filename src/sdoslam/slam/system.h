@@ -78,8 +78,6 @@ class System {
   // Finishes local mapping of the queued keyframes and stops the mapping thread. Idempotent.
   void Shutdown();
   const Map& map() const { return *map_; }
-  // Local mapping time per keyframe, milliseconds, in processing order.
-  std::vector<double> MappingTimes() const;
   // Each processed keyframe's mapping time and statistics, in processing order.
   std::vector<MappingRecord> MappingRecords() const;
 
