@@ -8,6 +8,7 @@
 
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
+#include "sdoslam/synth/real_background.h"
 #include "sdoslam/synth/sequence.h"
 
 namespace sdoslam {
@@ -25,7 +26,40 @@ struct SynthArgs {
   bool overwrite = false;
   bool list = false;
   std::string contact_sheet;
+  std::string background;
+  std::string camera;
+  bool forward_backward = false;
+  bool frames_given = false;
 };
+
+// `--background`: the scenario's objects rendered into a real recording.
+void RunBackgroundSynth(const SynthArgs& args) {
+  synth::BackgroundSynthOptions options;
+  options.background = args.background;
+  options.scenario = args.scenario;
+  std::filesystem::path camera_file = args.camera;
+  if (camera_file.empty()) camera_file = options.background / "camera.yaml";
+  if (!std::filesystem::exists(camera_file)) {
+    throw Error(camera_file.string() +
+                " does not exist: give the recording's camera with --camera (e.g. "
+                "configs/tum_fr2.yaml)");
+  }
+  options.camera = LoadCameraConfig(camera_file);
+  options.forward_backward = args.forward_backward;
+  options.max_frames = args.frames_given ? args.frames : 0;
+  options.seed = args.seed;
+  options.sensor.enabled = !args.no_noise;
+  options.sensor.motion_blur_samples = args.motion_blur;
+  const synth::SequenceSummary s =
+      synth::WriteBackgroundSequence(options, args.out, args.overwrite);
+  std::cout << fmt::format(
+      "wrote {} frames of '{}' over {}{} to {} in {:.1f} s ({:.1f} ms/frame rendering)\n"
+      "moving objects cover {:.0f} % of the image on average, {:.0f} % at most\n",
+      s.frames, args.scenario, args.background,
+      args.forward_backward ? " (forward, then backward)" : "", args.out, s.total_seconds,
+      1000.0 * s.render_seconds / s.frames, 100.0 * s.dynamic_fraction_mean,
+      100.0 * s.dynamic_fraction_max);
+}
 
 void RunSynth(const SynthArgs& args) {
   if (args.list) {
@@ -34,6 +68,9 @@ void RunSynth(const SynthArgs& args) {
       std::cout << fmt::format("{:<22} camera {:<14} {}\n", name, synth::ToString(s.motion),
                                s.description);
     }
+    std::cout << "over a real recording (--background): ";
+    for (const auto& name : synth::BackgroundScenarioNames()) std::cout << name << ' ';
+    std::cout << '\n';
     std::cout << "camera motions (--motion): ";
     for (const auto& m : synth::CameraMotionNames()) std::cout << m << ' ';
     std::cout << '\n';
@@ -48,6 +85,15 @@ void RunSynth(const SynthArgs& args) {
     if (args.out.empty()) return;
   }
   if (args.out.empty()) throw Error("--out is required (the folder to write the sequence to)");
+  if (!args.background.empty()) {
+    if (!args.motion.empty()) throw Error("--motion does not apply with --background");
+    if (args.exposure_changes) throw Error("--exposure-changes does not apply with --background");
+    RunBackgroundSynth(args);
+    return;
+  }
+  if (!args.camera.empty() || args.forward_backward) {
+    throw Error("--camera and --forward-backward apply only with --background");
+  }
   synth::SynthOptions options;
   options.scenario = args.scenario;
   if (!args.motion.empty()) options.motion = synth::ParseCameraMotion(args.motion);
@@ -75,15 +121,26 @@ void AddSynthCommand(CLI::App& app) {
   cmd->add_option("--out", args->out, "output folder (TUM layout plus masks and detections)");
   cmd->add_option("--motion", args->motion,
                   "override the camera motion: static, xyz, rpy, halfsphere, unconstrained, loop");
-  cmd->add_option("--frames", args->frames, "number of frames at 30 Hz")
+  cmd->add_option("--frames", args->frames,
+                  "number of frames at 30 Hz (with --background: recording frames used; default "
+                  "all)")
       ->check(CLI::Range(1, 100000))
-      ->capture_default_str();
+      ->capture_default_str()
+      ->each([args](const std::string&) { args->frames_given = true; });
   cmd->add_option("--seed", args->seed, "seed of the sensor noise")->capture_default_str();
   cmd->add_flag("--no-noise", args->no_noise,
                 "perfect sensor: no image or depth noise, no missing depth");
   cmd->add_option("--motion-blur", args->motion_blur, "renderings averaged per frame (0: no blur)")
       ->check(CLI::Range(0, 64));
   cmd->add_flag("--exposure-changes", args->exposure_changes, "let the exposure drift");
+  cmd->add_option("--background", args->background,
+                  "render the scenario's moving objects into this real static recording (TUM "
+                  "layout with groundtruth.txt); scenarios: carried_box, swinging_boxes, people, "
+                  "mixed");
+  cmd->add_option("--camera", args->camera,
+                  "camera config of the --background recording (default: its camera.yaml)");
+  cmd->add_flag("--forward-backward", args->forward_backward,
+                "play the --background recording forward, then backward");
   cmd->add_flag("--overwrite", args->overwrite, "replace an existing output folder");
   cmd->add_flag("--list", args->list, "list the scenarios and camera motions");
   cmd->add_option("--contact-sheet", args->contact_sheet,

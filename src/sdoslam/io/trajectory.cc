@@ -1,5 +1,6 @@
 #include "sdoslam/io/trajectory.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -8,6 +9,25 @@
 #include "sdoslam/core/text_file.h"
 
 namespace sdoslam {
+
+std::optional<Eigen::Isometry3d> InterpolatePose(const Trajectory& trajectory, double timestamp,
+                                                 double max_gap) {
+  const auto after = std::lower_bound(
+      trajectory.begin(), trajectory.end(), timestamp,
+      [](const StampedPose& pose, double t) { return pose.timestamp < t; });
+  if (after == trajectory.end()) return std::nullopt;
+  if (after->timestamp == timestamp) return after->T_world_camera;
+  if (after == trajectory.begin()) return std::nullopt;
+  const StampedPose& a = *(after - 1);
+  const StampedPose& b = *after;
+  if (timestamp - a.timestamp > max_gap || b.timestamp - timestamp > max_gap) return std::nullopt;
+  const double s = (timestamp - a.timestamp) / (b.timestamp - a.timestamp);
+  const Eigen::Quaterniond qa(a.T_world_camera.linear()), qb(b.T_world_camera.linear());
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = qa.slerp(s, qb).toRotationMatrix();
+  T.translation() = (1 - s) * a.T_world_camera.translation() + s * b.T_world_camera.translation();
+  return T;
+}
 
 Trajectory ReadTumTrajectory(const std::filesystem::path& path,
                              const TrajectoryReadOptions& options) {

@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <filesystem>
+#include <optional>
 #include <vector>
 
 namespace sdoslam {
@@ -26,6 +27,13 @@ struct TrajectoryReadOptions {
 // that do not increase.
 Trajectory ReadTumTrajectory(const std::filesystem::path& path,
                              const TrajectoryReadOptions& options = {});
+
+// The pose at `timestamp`, interpolated between the two samples around it (linear in position,
+// slerp in rotation), or nullopt when the timestamp lies outside the trajectory or either
+// neighbour is more than `max_gap` seconds away (motion capture drop-outs). The trajectory
+// must be sorted by time, as ReadTumTrajectory returns it.
+std::optional<Eigen::Isometry3d> InterpolatePose(const Trajectory& trajectory, double timestamp,
+                                                 double max_gap);
 
 // Writes TUM format, timestamps with microsecond precision; atomically (see atomic_file.h).
 void WriteTumTrajectory(const std::filesystem::path& path, const Trajectory& trajectory);

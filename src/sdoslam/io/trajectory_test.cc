@@ -88,3 +88,32 @@ TEST(Trajectory, KittiIsRowMajorThreeByFour) {
 
 }  // namespace
 }  // namespace sdoslam
+
+namespace sdoslam {
+namespace {
+
+TEST(Trajectory, InterpolatesBetweenSamplesAndRefusesGapsAndTheOutside) {
+  // A camera turning about z at 1 rad/s while moving along x at 2 m/s, sampled at 10 Hz.
+  auto truth = [](double t) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = Eigen::AngleAxisd(t, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    T.translation() = Eigen::Vector3d(2 * t, 1, 0);
+    return T;
+  };
+  Trajectory samples;
+  for (int k = 0; k <= 10; ++k) samples.push_back({0.1 * k, truth(0.1 * k)});
+  samples.erase(samples.begin() + 6);  // a drop-out between 0.5 and 0.7 s
+  for (double t : {0.0, 0.03, 0.25, 0.49, 0.6, 0.71, 1.0}) {
+    const auto T = InterpolatePose(samples, t, 0.15);
+    ASSERT_TRUE(T.has_value()) << t;
+    EXPECT_LT((T->translation() - truth(t).translation()).norm(), 1e-9) << t;
+    EXPECT_LT(Eigen::AngleAxisd(T->linear().transpose() * truth(t).linear()).angle(), 1e-9) << t;
+  }
+  EXPECT_FALSE(InterpolatePose(samples, 0.6, 0.08).has_value());   // 0.1 s to either sample
+  EXPECT_TRUE(InterpolatePose(samples, 0.45, 0.08).has_value());   // before the drop-out
+  EXPECT_FALSE(InterpolatePose(samples, -0.01, 1.0).has_value());  // before the first sample
+  EXPECT_FALSE(InterpolatePose(samples, 1.01, 1.0).has_value());   // after the last
+}
+
+}  // namespace
+}  // namespace sdoslam

@@ -72,14 +72,15 @@ TEST_P(SyntheticStatic, TrajectoryWithinOneCentimetre) {
 
 INSTANTIATE_TEST_SUITE_P(Motions, SyntheticStatic, ::testing::Values("xyz", "rpy", "halfsphere"));
 
-TEST(SlamReal, Fr2Desk50WithinOneCentimetre) {
+TEST(SlamReal, Fr2Desk50WithinFiveMillimetres) {
   const auto folder = testing::SharedDir() / "data" / "tum_fr2_desk_50";
   if (!std::filesystem::is_directory(folder)) GTEST_SKIP() << "no " << folder;
   const CameraOptions camera = LoadCameraConfig(testing::SourceDir() / "configs" / "tum_fr2.yaml");
   const RunResult run = RunSequence(folder, camera);
   ASSERT_EQ(run.trajectory.size(), 50u);
   const AteResult ate = ComputeAte(ReadTumTrajectory(folder / "groundtruth.txt"), run.trajectory);
-  EXPECT_LE(ate.translation.rmse, 0.010);
+  // 3.3 mm measured with the config's depth factor 5208; ORB-SLAM2 gets 5.8 mm here.
+  EXPECT_LE(ate.translation.rmse, 0.005);
 }
 
 TEST(SlamDeterminism, TwoRunsGiveBitIdenticalTrajectories) {

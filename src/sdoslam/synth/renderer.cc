@@ -120,8 +120,9 @@ RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_wor
         continue;
       }
       const Primitive& p = *best_candidate->primitive;
-      const Eigen::Vector3f albedo = TextureColour(p.base_colour, p.texture_seed,
-                                                   best_candidate->T_texture_world * best.point);
+      const Eigen::Vector3f albedo =
+          TextureColour(p.base_colour, p.texture_seed,
+                        (best_candidate->T_texture_world * best.point) / p.texture_scale);
       const double lambert = std::max(0.0, best.normal.dot(light));
       const float shade = static_cast<float>(0.35 + 0.65 * lambert);
       colour_row[u] = cv::Vec3f(albedo.z() * shade, albedo.y() * shade, albedo.x() * shade);

@@ -90,115 +90,6 @@ Shuttle BackAndForth(double t, double period, double phase) {
   return {0.5 * (1 - std::cos(w * t + phase)), 0.5 * w * std::sin(w * t + phase)};
 }
 
-// A walking person: legs and arms swing with the gait, the body turns at the ends of its path.
-SceneObject Person(uint16_t id, const std::string& name, const Vector3d& a, const Vector3d& b,
-                   double period, double phase, const Vector3f& shirt, const Vector3f& trousers,
-                   double start_time = 0.0) {
-  const double length = (b - a).norm();
-  const double heading = std::atan2(b.y() - a.y(), b.x() - a.x());
-  auto state = [=](double t) {
-    const double tau = std::max(0.0, t - start_time);
-    const Shuttle s = BackAndForth(tau, period, phase);
-    const double max_rate = kPi / period;
-    // Turn around smoothly where the direction of travel reverses.
-    const double turn = 0.5 * (1 - std::clamp(s.rate / (0.25 * max_rate), -1.0, 1.0));
-    const double yaw = heading - kPi / 2 + kPi * turn;
-    const Vector3d position = a + s.fraction * (b - a);
-    const double speed = std::abs(s.rate) * length;
-    // Gait phase grows with the distance walked (about 1.4 m per stride).
-    const double gait = 2 * kPi * (s.fraction * length) / 1.4 * (s.rate >= 0 ? 1 : -1);
-    return std::tuple{Pose(position, Rz(yaw)), std::min(1.0, speed / 0.6), gait};
-  };
-  SceneObject person;
-  person.id = id;
-  person.name = name;
-  person.class_name = "person";
-  person.pose_at = [=](double t) { return std::get<0>(state(t)); };
-  person.parts_at = [=](double t) {
-    const auto [body, swing_scale, gait] = state(t);
-    const double swing = 0.45 * swing_scale * std::sin(gait);
-    std::vector<Primitive> parts;
-    auto part = [&](Primitive::Shape shape, const Isometry3d& local, const Vector3d& half,
-                    const Vector3f& colour, uint32_t seed) {
-      Primitive p;
-      p.shape = shape;
-      p.T_world_primitive = body * local;
-      p.half_size = half;
-      p.base_colour = colour;
-      p.texture_seed = 1000u + id * 16u + seed;
-      p.T_world_texture = body;
-      parts.push_back(p);
-    };
-    // Body frame: origin between the feet on the floor, y forward, z up.
-    const Vector3f skin(0.85f, 0.65f, 0.5f);
-    for (int side : {-1, 1}) {
-      const Vector3d hip(0.1 * side, 0, 0.9);
-      const Eigen::Matrix3d leg = Rx(side * swing);
-      part(Primitive::Shape::kBox, Pose(hip + leg * Vector3d(0, 0, -0.44), leg),
-           {0.075, 0.09, 0.44}, trousers, side > 0 ? 1 : 2);
-      const Vector3d shoulder(0.28 * side, 0, 1.45);
-      const Eigen::Matrix3d arm = Rx(-side * swing * 0.8);
-      part(Primitive::Shape::kBox, Pose(shoulder + arm * Vector3d(0, 0, -0.3), arm),
-           {0.055, 0.06, 0.3}, shirt, side > 0 ? 3 : 4);
-    }
-    part(Primitive::Shape::kBox, Pose({0, 0, 1.2}), {0.21, 0.12, 0.31}, shirt, 5);
-    part(Primitive::Shape::kEllipsoid, Pose({0, 0, 1.66}), {0.09, 0.1, 0.12}, skin, 6);
-    return parts;
-  };
-  return person;
-}
-
-// A box hanging from `pivot` on a rigid rod, swinging about a horizontal axis (OMD-style).
-SceneObject Pendulum(uint16_t id, const std::string& name, const Vector3d& pivot, double length,
-                     double axis_yaw, double amplitude, double period, double phase,
-                     const Vector3d& size, const Vector3f& colour, double start_time = 0.0) {
-  auto pose = [=](double t) {
-    const double tau = std::max(0.0, t - start_time);
-    const double angle = amplitude * std::sin(2 * kPi * tau / period + phase) -
-                         (start_time > 0 ? amplitude * std::sin(phase) : 0.0);
-    const Eigen::Matrix3d R = Rz(axis_yaw) * Rx(angle) * Rz(-axis_yaw);
-    return Pose(pivot + R * Vector3d(0, 0, -length), R * Rz(axis_yaw));
-  };
-  SceneObject object;
-  object.id = id;
-  object.name = name;
-  object.pose_at = pose;
-  object.parts_at = [=](double t) {
-    const Isometry3d body = pose(t);
-    Primitive box;
-    box.T_world_primitive = body;
-    box.half_size = 0.5 * size;
-    box.base_colour = colour;
-    box.texture_seed = 2000u + id;
-    box.T_world_texture = body;
-    Primitive rod = box;
-    rod.T_world_primitive = body * Pose({0, 0, 0.5 * length});
-    rod.half_size = Vector3d(0.008, 0.008, 0.5 * length - 0.5 * size.z());
-    rod.base_colour = Vector3f(0.25f, 0.25f, 0.25f);
-    return std::vector<Primitive>{box, rod};
-  };
-  return object;
-}
-
-// A rigid textured box moving along `pose` (its centre and orientation at time t).
-SceneObject RigidBox(uint16_t id, const std::string& name, std::function<Isometry3d(double)> pose,
-                     const Vector3d& half_size, const Vector3f& colour, uint32_t texture_seed) {
-  SceneObject object;
-  object.id = id;
-  object.name = name;
-  object.pose_at = pose;
-  object.parts_at = [=](double t) {
-    Primitive box;
-    box.T_world_primitive = pose(t);
-    box.half_size = half_size;
-    box.base_colour = colour;
-    box.texture_seed = texture_seed;
-    box.T_world_texture = box.T_world_primitive;
-    return std::vector<Primitive>{box};
-  };
-  return object;
-}
-
 // A box sliding back and forth on the floor while spinning about its vertical axis.
 SceneObject SlidingBox(uint16_t id, const std::string& name, const Vector3d& a, const Vector3d& b,
                        double period, double spin, const Vector3d& size, const Vector3f& colour,
@@ -258,6 +149,115 @@ std::vector<SceneObject> SwingingBoxes() {
 }
 
 }  // namespace
+
+// A walking person: legs and arms swing with the gait, the body turns at the ends of its path.
+SceneObject Person(uint16_t id, const std::string& name, const Vector3d& a, const Vector3d& b,
+                   double period, double phase, const Vector3f& shirt, const Vector3f& trousers,
+                   double start_time) {
+  const double length = (b - a).norm();
+  const double heading = std::atan2(b.y() - a.y(), b.x() - a.x());
+  auto state = [=](double t) {
+    const double tau = std::max(0.0, t - start_time);
+    const Shuttle s = BackAndForth(tau, period, phase);
+    const double max_rate = kPi / period;
+    // Turn around smoothly where the direction of travel reverses.
+    const double turn = 0.5 * (1 - std::clamp(s.rate / (0.25 * max_rate), -1.0, 1.0));
+    const double yaw = heading - kPi / 2 + kPi * turn;
+    const Vector3d position = a + s.fraction * (b - a);
+    const double speed = std::abs(s.rate) * length;
+    // Gait phase grows with the distance walked (about 1.4 m per stride).
+    const double gait = 2 * kPi * (s.fraction * length) / 1.4 * (s.rate >= 0 ? 1 : -1);
+    return std::tuple{Pose(position, Rz(yaw)), std::min(1.0, speed / 0.6), gait};
+  };
+  SceneObject person;
+  person.id = id;
+  person.name = name;
+  person.class_name = "person";
+  person.pose_at = [=](double t) { return std::get<0>(state(t)); };
+  person.parts_at = [=](double t) {
+    const auto [body, swing_scale, gait] = state(t);
+    const double swing = 0.45 * swing_scale * std::sin(gait);
+    std::vector<Primitive> parts;
+    auto part = [&](Primitive::Shape shape, const Isometry3d& local, const Vector3d& half,
+                    const Vector3f& colour, uint32_t seed) {
+      Primitive p;
+      p.shape = shape;
+      p.T_world_primitive = body * local;
+      p.half_size = half;
+      p.base_colour = colour;
+      p.texture_seed = 1000u + id * 16u + seed;
+      p.T_world_texture = body;
+      parts.push_back(p);
+    };
+    // Body frame: origin between the feet on the floor, y forward, z up.
+    const Vector3f skin(0.85f, 0.65f, 0.5f);
+    for (int side : {-1, 1}) {
+      const Vector3d hip(0.1 * side, 0, 0.9);
+      const Eigen::Matrix3d leg = Rx(side * swing);
+      part(Primitive::Shape::kBox, Pose(hip + leg * Vector3d(0, 0, -0.44), leg),
+           {0.075, 0.09, 0.44}, trousers, side > 0 ? 1 : 2);
+      const Vector3d shoulder(0.28 * side, 0, 1.45);
+      const Eigen::Matrix3d arm = Rx(-side * swing * 0.8);
+      part(Primitive::Shape::kBox, Pose(shoulder + arm * Vector3d(0, 0, -0.3), arm),
+           {0.055, 0.06, 0.3}, shirt, side > 0 ? 3 : 4);
+    }
+    part(Primitive::Shape::kBox, Pose({0, 0, 1.2}), {0.21, 0.12, 0.31}, shirt, 5);
+    part(Primitive::Shape::kEllipsoid, Pose({0, 0, 1.66}), {0.09, 0.1, 0.12}, skin, 6);
+    return parts;
+  };
+  return person;
+}
+
+// A box hanging from `pivot` on a rigid rod, swinging about a horizontal axis (OMD-style).
+SceneObject Pendulum(uint16_t id, const std::string& name, const Vector3d& pivot, double length,
+                     double axis_yaw, double amplitude, double period, double phase,
+                     const Vector3d& size, const Vector3f& colour, double start_time) {
+  auto pose = [=](double t) {
+    const double tau = std::max(0.0, t - start_time);
+    const double angle = amplitude * std::sin(2 * kPi * tau / period + phase) -
+                         (start_time > 0 ? amplitude * std::sin(phase) : 0.0);
+    const Eigen::Matrix3d R = Rz(axis_yaw) * Rx(angle) * Rz(-axis_yaw);
+    return Pose(pivot + R * Vector3d(0, 0, -length), R * Rz(axis_yaw));
+  };
+  SceneObject object;
+  object.id = id;
+  object.name = name;
+  object.pose_at = pose;
+  object.parts_at = [=](double t) {
+    const Isometry3d body = pose(t);
+    Primitive box;
+    box.T_world_primitive = body;
+    box.half_size = 0.5 * size;
+    box.base_colour = colour;
+    box.texture_seed = 2000u + id;
+    box.T_world_texture = body;
+    Primitive rod = box;
+    rod.T_world_primitive = body * Pose({0, 0, 0.5 * length});
+    rod.half_size = Vector3d(0.008, 0.008, 0.5 * length - 0.5 * size.z());
+    rod.base_colour = Vector3f(0.25f, 0.25f, 0.25f);
+    return std::vector<Primitive>{box, rod};
+  };
+  return object;
+}
+
+// A rigid textured box moving along `pose` (its centre and orientation at time t).
+SceneObject RigidBox(uint16_t id, const std::string& name, std::function<Isometry3d(double)> pose,
+                     const Vector3d& half_size, const Vector3f& colour, uint32_t texture_seed) {
+  SceneObject object;
+  object.id = id;
+  object.name = name;
+  object.pose_at = pose;
+  object.parts_at = [=](double t) {
+    Primitive box;
+    box.T_world_primitive = pose(t);
+    box.half_size = half_size;
+    box.base_colour = colour;
+    box.texture_seed = texture_seed;
+    box.T_world_texture = box.T_world_primitive;
+    return std::vector<Primitive>{box};
+  };
+  return object;
+}
 
 CameraMotion ParseCameraMotion(const std::string& name) {
   for (CameraMotion m :

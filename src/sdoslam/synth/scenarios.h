@@ -36,6 +36,27 @@ std::vector<std::string> ScenarioNames();
 Scenario MakeScenario(const std::string& name, double duration,
                       std::optional<CameraMotion> motion = std::nullopt);
 
+// Building blocks of scenes, in a world frame with z up (also used by the real-background
+// sequences, which place them in a frame levelled on the recording's first camera).
+//
+// A walking person shuttling between a and b (floor points) with period `period` seconds:
+// legs and arms swing with the gait, the body turns at the ends of its path. Class "person".
+SceneObject Person(uint16_t id, const std::string& name, const Eigen::Vector3d& a,
+                   const Eigen::Vector3d& b, double period, double phase,
+                   const Eigen::Vector3f& shirt, const Eigen::Vector3f& trousers,
+                   double start_time = 0.0);
+// A box hanging from `pivot` on a rigid rod of `length`, swinging about a horizontal axis
+// (OMD-style); no known class.
+SceneObject Pendulum(uint16_t id, const std::string& name, const Eigen::Vector3d& pivot,
+                     double length, double axis_yaw, double amplitude, double period,
+                     double phase, const Eigen::Vector3d& size, const Eigen::Vector3f& colour,
+                     double start_time = 0.0);
+// A rigid textured box moving along `pose` (its centre and orientation at time t).
+SceneObject RigidBox(uint16_t id, const std::string& name,
+                     std::function<Eigen::Isometry3d(double)> pose,
+                     const Eigen::Vector3d& half_size, const Eigen::Vector3f& colour,
+                     uint32_t texture_seed);
+
 // The synthetic camera: 640×480, the TUM freiburg3 intrinsics, no distortion, depth factor 5000.
 CameraOptions SyntheticCamera();
 

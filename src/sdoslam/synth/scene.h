@@ -21,6 +21,8 @@ struct Primitive {
   // Texture coordinates are taken in this frame, so a part's texture moves with its object
   // (for articulated parts: the object's frame, not the limb's).
   Eigen::Isometry3d T_world_texture = Eigen::Isometry3d::Identity();
+  // Texture coordinates are divided by this: < 1 gives finer, denser texture (more corners).
+  double texture_scale = 1.0;
 };
 
 // What a ray hit.

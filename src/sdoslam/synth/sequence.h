@@ -8,6 +8,7 @@
 
 #include "sdoslam/synth/scenarios.h"
 #include "sdoslam/synth/sensor.h"
+#include "sdoslam/synth/sequence_writer.h"
 
 namespace sdoslam::synth {
 
@@ -19,14 +20,6 @@ struct SynthOptions {
   double first_timestamp = 1000.0;     // seconds
   SensorOptions sensor;
   void Check() const;
-};
-
-struct SequenceSummary {
-  int frames = 0;
-  double render_seconds = 0;  // rendering and sensor model, without PNG encoding
-  double total_seconds = 0;
-  double dynamic_fraction_mean = 0;  // share of pixels on moving objects
-  double dynamic_fraction_max = 0;
 };
 
 // Renders the sequence and writes, into `out`:
