@@ -135,8 +135,8 @@ void AddSynthCommand(CLI::App& app) {
   cmd->add_flag("--exposure-changes", args->exposure_changes, "let the exposure drift");
   cmd->add_option("--background", args->background,
                   "render the scenario's moving objects into this real static recording (TUM "
-                  "layout with groundtruth.txt); scenarios: carried_box, swinging_boxes, people, "
-                  "mixed");
+                  "layout with groundtruth.txt); scenarios: static, carried_box, swinging_boxes, "
+                  "people, mixed");
   cmd->add_option("--camera", args->camera,
                   "camera config of the --background recording (default: its camera.yaml)");
   cmd->add_flag("--forward-backward", args->forward_backward,

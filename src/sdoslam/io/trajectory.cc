@@ -12,9 +12,9 @@ namespace sdoslam {
 
 std::optional<Eigen::Isometry3d> InterpolatePose(const Trajectory& trajectory, double timestamp,
                                                  double max_gap) {
-  const auto after = std::lower_bound(
-      trajectory.begin(), trajectory.end(), timestamp,
-      [](const StampedPose& pose, double t) { return pose.timestamp < t; });
+  const auto after =
+      std::lower_bound(trajectory.begin(), trajectory.end(), timestamp,
+                       [](const StampedPose& pose, double t) { return pose.timestamp < t; });
   if (after == trajectory.end()) return std::nullopt;
   if (after->timestamp == timestamp) return after->T_world_camera;
   if (after == trajectory.begin()) return std::nullopt;

@@ -60,8 +60,8 @@ Isometry3d LevelledAnchor(const Isometry3d& T_world_camera) {
 
 // Median valid depth in the central third of the image: how far the recorded scene is.
 double SceneDepth(const cv::Mat& depth, const std::filesystem::path& file) {
-  const cv::Mat centre = depth(cv::Rect(depth.cols / 3, depth.rows / 3, depth.cols / 3,
-                                        depth.rows / 3));
+  const cv::Mat centre =
+      depth(cv::Rect(depth.cols / 3, depth.rows / 3, depth.cols / 3, depth.rows / 3));
   std::vector<float> values;
   for (int v = 0; v < centre.rows; ++v) {
     for (int u = 0; u < centre.cols; ++u) {
@@ -70,8 +70,9 @@ double SceneDepth(const cv::Mat& depth, const std::filesystem::path& file) {
     }
   }
   if (values.size() < centre.total() / 10) {
-    throw Error(file.string() + ": too little valid depth in the centre of the first frame to "
-                                "place objects in front of the scene");
+    throw Error(file.string() +
+                ": too little valid depth in the centre of the first frame to "
+                "place objects in front of the scene");
   }
   std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
   return values[values.size() / 2];
@@ -79,8 +80,8 @@ double SceneDepth(const cv::Mat& depth, const std::filesystem::path& file) {
 
 struct Placement {
   Isometry3d T_world_anchor;
-  Vector3d focus;      // in the anchor frame: the scene point at the first image's centre
-  double duration;     // seconds of the played sequence
+  Vector3d focus;   // in the anchor frame: the scene point at the first image's centre
+  double duration;  // seconds of the played sequence
   std::function<Isometry3d(double)> camera_at;  // T_world_camera at scene time t
 };
 
@@ -89,7 +90,8 @@ SceneObject CarriedBox(const Placement& p) {
   auto pose = [camera_at](double t) {
     // Held in two hands, lower left of centre, 0.6 m ahead: it sways a little against the camera.
     const Isometry3d sway =
-        Pose(Vector3d(0.025 * std::sin(1.7 * t), 0.02 * std::sin(1.1 * t + 1), 0.015 * std::sin(0.8 * t)),
+        Pose(Vector3d(0.025 * std::sin(1.7 * t), 0.02 * std::sin(1.1 * t + 1),
+                      0.015 * std::sin(0.8 * t)),
              Eigen::AngleAxisd(0.06 * std::sin(0.9 * t), Vector3d::UnitY()).toRotationMatrix() *
                  Eigen::AngleAxisd(0.04 * std::sin(1.3 * t), Vector3d::UnitX()).toRotationMatrix());
     return camera_at(t) * Pose(Vector3d(-0.07, 0.05, 0.6)) * sway;
@@ -146,7 +148,9 @@ std::vector<SceneObject> People(const Placement& p, int count) {
 Scene MakeBackgroundScene(const std::string& name, const Placement& p) {
   Scene scene;
   scene.light_direction = p.T_world_anchor.linear() * Vector3d(0.3, -0.4, 1.0).normalized();
-  if (name == "carried_box") {
+  if (name == "static") {
+    // Nothing added: the recording as it is, for the static baseline of the same play.
+  } else if (name == "carried_box") {
     scene.objects = {CarriedBox(p)};
   } else if (name == "swinging_boxes") {
     scene.objects = SwingingBoxes(p);
@@ -173,7 +177,7 @@ void CheckScenarioName(const std::string& name) {
 }  // namespace
 
 std::vector<std::string> BackgroundScenarioNames() {
-  return {"carried_box", "swinging_boxes", "people", "mixed"};
+  return {"static", "carried_box", "swinging_boxes", "people", "mixed"};
 }
 
 void BackgroundSynthOptions::Check() const {
@@ -216,8 +220,7 @@ SequenceSummary WriteBackgroundSequence(const BackgroundSynthOptions& options,
   for (size_t i = 0; i < order.size(); ++i) {
     const RgbdFrameEntry& entry = recording.entries()[order[i]];
     if (i > 0) {
-      const double step =
-          std::abs(entry.timestamp - recording.entries()[order[i - 1]].timestamp);
+      const double step = std::abs(entry.timestamp - recording.entries()[order[i - 1]].timestamp);
       times[i] = times[i - 1] + std::max(step, 1e-3);
     }
     const auto pose = InterpolatePose(ground_truth, entry.timestamp, options.max_ground_truth_gap);
@@ -264,8 +267,8 @@ SequenceSummary WriteBackgroundSequence(const BackgroundSynthOptions& options,
     objects.depth.copyTo(composite.depth, object_mask);
     composite.instance = cv::Mat::zeros(objects.instance.size(), CV_16UC1);
     objects.instance.copyTo(composite.instance, object_mask);
-    const SensorFrame sensed = Sense(composite, options.camera, options.sensor, options.seed,
-                                     static_cast<int>(i));
+    const SensorFrame sensed =
+        Sense(composite, options.camera, options.sensor, options.seed, static_cast<int>(i));
 
     // Recorded pixels stay as recorded, except the sensor's shadow next to an object's outline.
     SensorFrame frame;
@@ -282,8 +285,8 @@ SequenceSummary WriteBackgroundSequence(const BackgroundSynthOptions& options,
   }
 
   YAML::Emitter info;
-  info << YAML::BeginMap << YAML::Key << "scenario" << YAML::Value << options.scenario
-       << YAML::Key << "background" << YAML::Value << options.background.string() << YAML::Key
+  info << YAML::BeginMap << YAML::Key << "scenario" << YAML::Value << options.scenario << YAML::Key
+       << "background" << YAML::Value << options.background.string() << YAML::Key
        << "background_frames" << YAML::Value << used << YAML::Key << "forward_backward"
        << YAML::Value << options.forward_backward << YAML::Key << "frames" << YAML::Value
        << order.size() << YAML::Key << "seed" << YAML::Value << options.seed << YAML::Key

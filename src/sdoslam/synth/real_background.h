@@ -31,7 +31,8 @@ struct BackgroundSynthOptions {
   void Check() const;
 };
 
-// carried_box: a large textured box carried in front of the camera (about a quarter of the
+// static: nothing added (the static baseline of the same play); carried_box: a large textured box
+// carried in front of the camera (about a quarter of the
 //   image), moving with it; swinging_boxes: two boxes swinging across the view (unknown class);
 // people: two people walking across the view (class person); mixed: the carried box, a swinging
 // box and a walking person.

@@ -39,7 +39,7 @@ TEST_F(RealBackgroundTest, ObjectsAreZBufferedIntoTheRecordingAlongItsRealTrajec
   const BackgroundSynthOptions options = DeskOptions("carried_box", 6);
   const auto out = dir_ / "seq";
   const SequenceSummary summary = WriteBackgroundSequence(options, out);
-  ASSERT_EQ(summary.frames, 11);  // 6 forward, 5 back
+  ASSERT_EQ(summary.frames, 11);                  // 6 forward, 5 back
   EXPECT_GT(summary.dynamic_fraction_mean, 0.2);  // a quarter of the image, as promised
   EXPECT_LT(summary.dynamic_fraction_max, 0.35);
 
@@ -54,8 +54,7 @@ TEST_F(RealBackgroundTest, ObjectsAreZBufferedIntoTheRecordingAlongItsRealTrajec
     if (k > 0) {
       EXPECT_GT(gt[k].timestamp, gt[k - 1].timestamp);
     }
-    const auto expected =
-        InterpolatePose(truth, recording.entries()[played[k]].timestamp, 0.05);
+    const auto expected = InterpolatePose(truth, recording.entries()[played[k]].timestamp, 0.05);
     ASSERT_TRUE(expected.has_value());
     EXPECT_LT((gt[k].T_world_camera.translation() - expected->translation()).norm(), 1e-5) << k;
 
@@ -117,14 +116,15 @@ TEST_F(RealBackgroundTest, PeopleAreDetectedAsPersonsAndUnknownScenariosAreError
   EXPECT_NE(detections.find("\"person\""), std::string::npos);
 
   options.scenario = "walking_xyz";
-  EXPECT_NE(testing::MessageOf([&] { WriteBackgroundSequence(options, dir_ / "x"); })
-                .find("unknown real-background scenario 'walking_xyz' (known: carried_box"),
+  EXPECT_NE(testing::MessageOf([&] {
+              WriteBackgroundSequence(options, dir_ / "x");
+            }).find("unknown real-background scenario 'walking_xyz' (known: static, carried_box"),
             std::string::npos);
   options.scenario = "mixed";
   options.background = dir_ / "nowhere";
-  EXPECT_NE(testing::MessageOf([&] { WriteBackgroundSequence(options, dir_ / "y"); })
-                .find("nowhere"),
-            std::string::npos);
+  EXPECT_NE(
+      testing::MessageOf([&] { WriteBackgroundSequence(options, dir_ / "y"); }).find("nowhere"),
+      std::string::npos);
   EXPECT_FALSE(std::filesystem::exists(dir_ / "y"));
 }
 

@@ -48,8 +48,8 @@ SceneObject Person(uint16_t id, const std::string& name, const Eigen::Vector3d& 
 // A box hanging from `pivot` on a rigid rod of `length`, swinging about a horizontal axis
 // (OMD-style); no known class.
 SceneObject Pendulum(uint16_t id, const std::string& name, const Eigen::Vector3d& pivot,
-                     double length, double axis_yaw, double amplitude, double period,
-                     double phase, const Eigen::Vector3d& size, const Eigen::Vector3f& colour,
+                     double length, double axis_yaw, double amplitude, double period, double phase,
+                     const Eigen::Vector3d& size, const Eigen::Vector3f& colour,
                      double start_time = 0.0);
 // A rigid textured box moving along `pose` (its centre and orientation at time t).
 SceneObject RigidBox(uint16_t id, const std::string& name,

@@ -29,6 +29,26 @@ void SceneFlowOptions::Check() const {
   if (cull_after < 1) throw Error("consistency.cull_after must be >= 1");
   if (depth_window_radius < 0 || depth_window_radius > 10)
     throw Error("consistency.depth_window_radius must be in [0, 10]");
+  if (!(max_segment_area > 0 && max_segment_area <= 1))
+    throw Error("consistency.max_segment_area must be in (0, 1]");
+}
+
+std::vector<uint8_t> LargeSegments(const cv::Mat& segment_image, double max_fraction) {
+  CV_Assert(segment_image.type() == CV_32S);
+  std::vector<int> area;
+  for (int y = 0; y < segment_image.rows; ++y) {
+    const int* row = segment_image.ptr<int>(y);
+    for (int x = 0; x < segment_image.cols; ++x) {
+      if (row[x] < 0) continue;
+      const auto s = static_cast<size_t>(row[x]);
+      if (s >= area.size()) area.resize(s + 1, 0);
+      ++area[s];
+    }
+  }
+  std::vector<uint8_t> large(area.size(), 0);
+  const double limit = max_fraction * static_cast<double>(segment_image.total());
+  for (size_t s = 0; s < area.size(); ++s) large[s] = area[s] > limit;
+  return large;
 }
 
 double DepthNoiseSigma(const SceneFlowOptions& o, double depth) {
@@ -57,6 +77,7 @@ std::vector<uint8_t> ClassifyBySceneFlow(const SceneFlowOptions& o,
                                          const std::vector<uint8_t>& exceeds,
                                          const std::vector<int>& segment,
                                          const std::vector<uint8_t>& locked_segments,
+                                         const std::vector<uint8_t>& large_segments,
                                          std::vector<uint8_t>* segment_dynamic_out) {
   const size_t n = measured.size();
   CV_Assert(exceeds.size() == n && segment.size() == n);
@@ -72,7 +93,8 @@ std::vector<uint8_t> ClassifyBySceneFlow(const SceneFlowOptions& o,
   std::vector<uint8_t> segment_dynamic(static_cast<size_t>(segments), 0);
   for (size_t s = 0; s < segment_dynamic.size(); ++s) {
     const bool locked = s < locked_segments.size() && locked_segments[s] != 0;
-    const bool by_count = measured_count[s] >= o.min_segment_features &&
+    const bool large = s < large_segments.size() && large_segments[s] != 0;
+    const bool by_count = !large && measured_count[s] >= o.min_segment_features &&
                           exceeding_count[s] > o.segment_ratio * measured_count[s];
     segment_dynamic[s] = locked || by_count;
   }

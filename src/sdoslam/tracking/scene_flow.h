@@ -53,6 +53,10 @@ struct SceneFlowOptions {
   // as moving when no depth of its windows (nearest, nearest surface, farthest surface) explains
   // it as static, and a landmark is only seen through when its whole window lies behind it.
   int depth_window_radius = 2;
+  // A segment larger than this share of the image is never turned dynamic as a whole: one
+  // frame's check, started from a rough pose that a large mover dragged along, would otherwise
+  // take most of the static scene out at once.
+  double max_segment_area = 0.2;
   void Check() const;
 
   // Calls visit(key, member) for every setting: one list of config keys for reading and writing.
@@ -75,6 +79,7 @@ struct SceneFlowOptions {
     visit("skip_round_trip_px", o.skip_round_trip_px);
     visit("cull_after", o.cull_after);
     visit("depth_window_radius", o.depth_window_radius);
+    visit("max_segment_area", o.max_segment_area);
   }
 };
 
@@ -92,16 +97,23 @@ bool ExceedsSceneFlowThreshold(const SceneFlowOptions& options, const Eigen::Vec
 
 // Segment re-evaluation. Inputs per feature: whether its scene flow was measured and exceeded
 // the threshold, and its segment (−1: none). `locked_segments`: segments that are dynamic
-// whatever their count (movable known classes). Returns per feature whether it is dynamic:
-// exceeding features on their own, and every feature of a segment in which more than
-// `segment_ratio` of at least `min_segment_features` measured features exceed.
-// `segment_dynamic` (optional) receives the verdict per segment.
+// whatever their count (movable known classes). `large_segments`: segments too large to be one
+// object (on real images they span desk, wall and floor); their features are judged one by
+// one, never as a whole. Returns per feature whether it is dynamic: exceeding features on their
+// own, and every feature of a segment in which more than `segment_ratio` of at least
+// `min_segment_features` measured features exceed. `segment_dynamic` (optional) receives the
+// verdict per segment.
 std::vector<uint8_t> ClassifyBySceneFlow(const SceneFlowOptions& options,
                                          const std::vector<uint8_t>& measured,
                                          const std::vector<uint8_t>& exceeds,
                                          const std::vector<int>& segment,
                                          const std::vector<uint8_t>& locked_segments,
+                                         const std::vector<uint8_t>& large_segments = {},
                                          std::vector<uint8_t>* segment_dynamic = nullptr);
+
+// Per segment of a segment image (CV_32S, −1: none): whether it covers more than
+// `max_fraction` of the image.
+std::vector<uint8_t> LargeSegments(const cv::Mat& segment_image, double max_fraction);
 
 // Follows `points` (pixels of `current_gray`) back into `previous_gray` with pyramidal
 // Lucas–Kanade. `found[i]` is 0 where tracking failed, its error exceeded the options' limit, or

@@ -70,6 +70,19 @@ TEST(ClassifyBySceneFlow, SegmentsAboveTheRatioTurnDynamicAsAWhole) {
   o.segment_ratio = 0.45;  // segment 0 (40 %) no longer turns as a whole
   const std::vector<uint8_t> stricter = {1, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 1, 1, 0, 1, 1, 1, 0};
   EXPECT_EQ(ClassifyBySceneFlow(o, measured, exceeds, segment, locked), stricter);
+  // Segment 0 too large to be an object: its features are judged one by one even at 30 %.
+  o.segment_ratio = 0.3;
+  const std::vector<uint8_t> large = {1, 0, 0, 0};
+  EXPECT_EQ(ClassifyBySceneFlow(o, measured, exceeds, segment, locked, large), stricter);
+}
+
+TEST(ClassifyBySceneFlow, LargeSegmentsAreThoseAboveTheAreaShare) {
+  cv::Mat segments(10, 10, CV_32S, cv::Scalar(-1));
+  segments(cv::Rect(0, 0, 10, 3)).setTo(0);  // 30 %
+  segments(cv::Rect(0, 3, 2, 5)).setTo(2);   // 10 %; segment 1 is absent
+  const std::vector<uint8_t> expected = {1, 0, 0};
+  EXPECT_EQ(LargeSegments(segments, 0.2), expected);
+  EXPECT_EQ(LargeSegments(segments, 0.3), std::vector<uint8_t>(3, 0));  // not more than 30 %
 }
 
 // 60×80 random noise (seeded) and the same upsampled to 240×320: texture for Lucas–Kanade.

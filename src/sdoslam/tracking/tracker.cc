@@ -502,6 +502,7 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
   const std::vector<bool> rough_outlier = frame.outlier;
   const Eigen::Isometry3d rough_pose = frame.T_camera_world;
   std::vector<uint8_t> dynamic(n, 0), exceeds(n, 0), segment_dynamic;
+  const std::vector<uint8_t> large_segments = LargeSegments(input.segments, o.max_segment_area);
   for (int iteration = 1; iteration <= o.max_iterations; ++iteration) {
     result->check_iterations = iteration;
     const Eigen::Isometry3d T_world_camera = frame.T_camera_world.inverse();
@@ -527,8 +528,8 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
       exceeds[k] = all_exceed;
     }
     std::vector<uint8_t> segments_now;
-    std::vector<uint8_t> next =
-        ClassifyBySceneFlow(o, measured, exceeds, segment, input.locked_segments, &segments_now);
+    std::vector<uint8_t> next = ClassifyBySceneFlow(
+        o, measured, exceeds, segment, input.locked_segments, large_segments, &segments_now);
     segment_dynamic.resize(std::max(segment_dynamic.size(), segments_now.size()), 0);
     for (size_t s = 0; s < segments_now.size(); ++s) segment_dynamic[s] |= segments_now[s];
     // A feature once judged dynamic stays so within the frame: the set only grows, so it
