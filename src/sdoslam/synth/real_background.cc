@@ -20,16 +20,6 @@ using Eigen::Isometry3d;
 using Eigen::Vector3d;
 using Eigen::Vector3f;
 
-constexpr double kPi = 3.14159265358979323846;
-
-Isometry3d Pose(const Vector3d& position,
-                const Eigen::Matrix3d& rotation = Eigen::Matrix3d::Identity()) {
-  Isometry3d T = Isometry3d::Identity();
-  T.linear() = rotation;
-  T.translation() = position;
-  return T;
-}
-
 // The object moved into the world by T_world_anchor (parts, texture frames and pose).
 SceneObject InWorld(SceneObject object, const Isometry3d& T_world_anchor) {
   auto parts_at = object.parts_at;

@@ -15,14 +15,6 @@ using Eigen::Vector3f;
 
 constexpr double kPi = 3.14159265358979323846;
 
-Isometry3d Pose(const Vector3d& position,
-                const Eigen::Matrix3d& rotation = Eigen::Matrix3d::Identity()) {
-  Isometry3d T = Isometry3d::Identity();
-  T.linear() = rotation;
-  T.translation() = position;
-  return T;
-}
-
 Eigen::Matrix3d Rz(double a) { return AngleAxisd(a, Vector3d::UnitZ()).toRotationMatrix(); }
 Eigen::Matrix3d Rx(double a) { return AngleAxisd(a, Vector3d::UnitX()).toRotationMatrix(); }
 Eigen::Matrix3d Ry(double a) { return AngleAxisd(a, Vector3d::UnitY()).toRotationMatrix(); }
@@ -149,6 +141,13 @@ std::vector<SceneObject> SwingingBoxes() {
 }
 
 }  // namespace
+
+Isometry3d Pose(const Vector3d& position, const Eigen::Matrix3d& rotation) {
+  Isometry3d T = Isometry3d::Identity();
+  T.linear() = rotation;
+  T.translation() = position;
+  return T;
+}
 
 // A walking person: legs and arms swing with the gait, the body turns at the ends of its path.
 SceneObject Person(uint16_t id, const std::string& name, const Vector3d& a, const Vector3d& b,

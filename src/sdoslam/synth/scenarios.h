@@ -36,6 +36,10 @@ std::vector<std::string> ScenarioNames();
 Scenario MakeScenario(const std::string& name, double duration,
                       std::optional<CameraMotion> motion = std::nullopt);
 
+// The pose with this position and rotation.
+Eigen::Isometry3d Pose(const Eigen::Vector3d& position,
+                       const Eigen::Matrix3d& rotation = Eigen::Matrix3d::Identity());
+
 // Building blocks of scenes, in a world frame with z up (also used by the real-background
 // sequences, which place them in a frame levelled on the recording's first camera).
 //
