@@ -135,6 +135,14 @@ std::vector<SceneObject> People(const Placement& p, int count) {
   return people;
 }
 
+void CheckScenarioName(const std::string& name) {
+  const auto names = BackgroundScenarioNames();
+  if (std::find(names.begin(), names.end(), name) != names.end()) return;
+  std::string list;
+  for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
+  throw Error("unknown real-background scenario '" + name + "' (known: " + list + ")");
+}
+
 Scene MakeBackgroundScene(const std::string& name, const Placement& p) {
   Scene scene;
   scene.light_direction = p.T_world_anchor.linear() * Vector3d(0.3, -0.4, 1.0).normalized();
@@ -149,19 +157,9 @@ Scene MakeBackgroundScene(const std::string& name, const Placement& p) {
   } else if (name == "mixed") {
     scene.objects = {People(p, 1)[0], SwingingBoxes(p)[0], CarriedBox(p)};
   } else {
-    std::string names;
-    for (const auto& n : BackgroundScenarioNames()) names += (names.empty() ? "" : ", ") + n;
-    throw Error("unknown real-background scenario '" + name + "' (known: " + names + ")");
+    CheckScenarioName(name);  // throws, listing the known names
   }
   return scene;
-}
-
-void CheckScenarioName(const std::string& name) {
-  const auto names = BackgroundScenarioNames();
-  if (std::find(names.begin(), names.end(), name) != names.end()) return;
-  std::string list;
-  for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
-  throw Error("unknown real-background scenario '" + name + "' (known: " + list + ")");
 }
 
 }  // namespace
