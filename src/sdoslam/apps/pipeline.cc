@@ -11,7 +11,6 @@
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
 #include "sdoslam/dynamic/overlay.h"
-#include "sdoslam/io/tum_dataset.h"
 
 namespace sdoslam {
 
@@ -67,10 +66,13 @@ cv::Mat LoadOracleLabels(const std::filesystem::path& dataset, const std::filesy
 
 }  // namespace
 
-RunSummary RunOnDataset(const RunOptions& run) {
-  TumDatasetOptions dataset_options;
-  dataset_options.associations = run.associations;
-  const TumDataset dataset(run.dataset, run.camera, dataset_options);
+RunSummary RunOnDataset(const RunOptions& options) {
+  DatasetOptions dataset_options;
+  dataset_options.layout = options.layout;
+  dataset_options.tum.associations = options.associations;
+  const RgbdDataset dataset(options.dataset, options.camera, dataset_options);
+  RunOptions run = options;
+  run.camera = dataset.camera();  // with intrinsics from the dataset where the config asks
   RunSummary summary;
   summary.frames = run.max_frames > 0 ? std::min(dataset.size(), run.max_frames) : dataset.size();
   const cv::Size image_size(run.camera.width, run.camera.height);
@@ -225,9 +227,8 @@ RunSummary RunOnDataset(const RunOptions& run) {
   if (run.save_masks)
     WriteFileAtomically(run.out / "features.csv", [&](std::ostream& o) { o << feature_log; });
 
-  const auto gt_path = run.dataset / "groundtruth.txt";
-  if (std::filesystem::exists(gt_path) && summary.trajectory.size() >= 3) {
-    const Trajectory gt = ReadTumTrajectory(gt_path);
+  if (dataset.ground_truth() && summary.trajectory.size() >= 3) {
+    const Trajectory& gt = *dataset.ground_truth();
     summary.evaluation = EvaluateEstimate(gt, summary.trajectory, ToString(run.mode), {});
     if (summary.keyframe_trajectory.size() >= 3) {
       summary.keyframe_evaluation =

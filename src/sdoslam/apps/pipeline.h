@@ -9,6 +9,7 @@
 #include "sdoslam/dynamic/front_end.h"
 #include "sdoslam/eval/mask_metrics.h"
 #include "sdoslam/eval/report.h"
+#include "sdoslam/io/dataset.h"
 #include "sdoslam/io/trajectory.h"
 #include "sdoslam/slam/system.h"
 
@@ -26,6 +27,7 @@ RunMode ParseRunMode(const std::string& name);  // throws Error naming the known
 struct RunOptions {
   std::filesystem::path dataset;
   std::filesystem::path associations;  // optional explicit rgb/depth associations
+  DatasetLayout layout = DatasetLayout::kAuto;
   std::filesystem::path out;
   CameraOptions camera;
   SlamOptions slam;
@@ -55,7 +57,7 @@ struct RunSummary {
   std::vector<MappingRecord> mapping;      // per keyframe, in processing order
   Trajectory trajectory;
   Trajectory keyframe_trajectory;                // the keyframes alive at the end
-  std::optional<EstimateEvaluation> evaluation;  // when the dataset has groundtruth.txt
+  std::optional<EstimateEvaluation> evaluation;  // when the dataset has ground truth
   std::optional<EstimateEvaluation> keyframe_evaluation;
   std::optional<MaskEvaluation>
       masks;  // when the dataset has ground-truth masks (not conventional)

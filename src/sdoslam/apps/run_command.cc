@@ -20,6 +20,7 @@ struct RunArgs {
   std::string config;
   std::string out;
   std::string associations;
+  std::string layout = "auto";
   int max_frames = 0;
   bool sequential = false;
   RunOverrides overrides;
@@ -34,6 +35,7 @@ void RunSlam(const RunArgs& args) {
   run.slam.sequential = args.sequential;
   run.dataset = args.dataset;
   run.associations = args.associations;
+  run.layout = ParseDatasetLayout(args.layout);
   run.out = args.out;
   run.max_frames = static_cast<size_t>(args.max_frames);
   run.save_overlays = args.save_overlays;
@@ -51,9 +53,14 @@ void RunSlam(const RunArgs& args) {
 
 void AddRunCommand(CLI::App& app) {
   auto args = std::make_shared<RunArgs>();
-  CLI::App* cmd = app.add_subcommand("run", "RGB-D SLAM on a sequence in the TUM layout");
-  cmd->add_option("--dataset", args->dataset, "sequence folder (rgb.txt, depth.txt, rgb/, depth/)")
+  CLI::App* cmd = app.add_subcommand(
+      "run", "RGB-D SLAM on a sequence (TUM, Bonn, sdoslam synth, Oxford Multi-motion)");
+  cmd->add_option("--dataset", args->dataset,
+                  "sequence folder: TUM layout (rgb.txt, depth.txt, rgb/, depth/) or an OMD "
+                  "segment (rgbd/, vicon.csv, vicon.yaml, kalibr.yaml)")
       ->required();
+  cmd->add_option("--layout", args->layout, "folder layout: auto (by its files), tum, omd")
+      ->check(CLI::IsMember({"auto", "tum", "omd"}));
   cmd->add_option(
          "--config", args->config,
          "config YAML: camera: and optional orb:, rgbd:, tracking:, consistency:, mapping:, "

@@ -17,6 +17,12 @@ void Require(bool ok, const std::string& field, const std::string& why) {
 }  // namespace
 
 void CameraOptions::Check() const {
+  Require(std::isfinite(fps) && fps > 0, "fps", "must be positive");
+  Require(std::isfinite(depth_factor) && depth_factor > 0, "depth_factor", "must be positive");
+  Require(std::isfinite(depth_min) && depth_min >= 0, "depth_min", "must be >= 0");
+  Require(std::isfinite(depth_max) && depth_max > depth_min, "depth_max",
+          "must be larger than depth_min");
+  if (from_dataset) return;
   Require(width > 0 && width <= 16384, "width",
           "must be in 1..16384, got " + std::to_string(width));
   Require(height > 0 && height <= 16384, "height",
@@ -31,11 +37,6 @@ void CameraOptions::Check() const {
        {std::pair{"k1", k1}, {"k2", k2}, {"p1", p1}, {"p2", p2}, {"k3", k3}}) {
     Require(std::isfinite(value), name, "must be finite");
   }
-  Require(std::isfinite(fps) && fps > 0, "fps", "must be positive");
-  Require(std::isfinite(depth_factor) && depth_factor > 0, "depth_factor", "must be positive");
-  Require(std::isfinite(depth_min) && depth_min >= 0, "depth_min", "must be >= 0");
-  Require(std::isfinite(depth_max) && depth_max > depth_min, "depth_max",
-          "must be larger than depth_min");
 }
 
 CameraOptions ReadCameraOptions(ConfigMap& section) {
@@ -43,9 +44,14 @@ CameraOptions ReadCameraOptions(ConfigMap& section) {
   section.Read("name", &options.name);
   section.Read("width", &options.width);
   section.Read("height", &options.height);
+  section.Read("from_dataset", &options.from_dataset);
   for (const char* key : {"fx", "fy", "cx", "cy"}) {
-    if (!section.Has(key)) {
+    if (!options.from_dataset && !section.Has(key)) {
       throw Error(section.origin() + ": camera." + key + " is required");
+    }
+    if (options.from_dataset && section.Has(key)) {
+      throw Error(section.origin() + ": camera." + key +
+                  " conflicts with from_dataset: true (the dataset's calibration gives it)");
     }
   }
   section.Read("fx", &options.fx);
@@ -104,6 +110,8 @@ CameraOptions LoadCameraConfig(const std::filesystem::path& path) {
 }
 
 Camera::Camera(const CameraOptions& options) : options_(options) {
+  if (options_.from_dataset)
+    throw Error("camera: the intrinsics are to come from the dataset, which was not opened");
   options_.Check();
   has_distortion_ = options_.k1 != 0 || options_.k2 != 0 || options_.p1 != 0 || options_.p2 != 0 ||
                     options_.k3 != 0;

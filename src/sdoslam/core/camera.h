@@ -33,12 +33,18 @@ struct CameraOptions {
   double depth_factor = 5000.0;  // raw 16-bit depth units per metre
   double depth_min = 0.1;        // depth outside [depth_min, depth_max] metres counts as missing
   double depth_max = 10.0;
+  // The intrinsics (size, focal lengths, principal point, distortion) come from the dataset's
+  // own calibration (an OMD segment's kalibr.yaml, a TUM folder's camera.yaml) when the run
+  // opens it; the depth settings above still come from here.
+  bool from_dataset = false;
 
-  // Throws Error naming the first impossible field.
+  // Throws Error naming the first impossible field (intrinsics are not checked while they are
+  // still to come from the dataset).
   void Check() const;
 };
 
-// Reads the keys of a `camera:` section (all optional except fx fy cx cy); rejects unknown keys.
+// Reads the keys of a `camera:` section (all optional except fx fy cx cy, which must be absent
+// with `from_dataset: true`); rejects unknown keys.
 CameraOptions ReadCameraOptions(ConfigMap& section);
 void WriteCameraOptions(const CameraOptions& options, YAML::Emitter* out);
 

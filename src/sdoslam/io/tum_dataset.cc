@@ -7,6 +7,7 @@
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/text_file.h"
 #include "sdoslam/core/timestamps.h"
+#include "sdoslam/io/dataset.h"
 
 namespace sdoslam {
 namespace {
@@ -112,37 +113,7 @@ RgbdFrame TumDataset::Load(size_t index) const {
     throw Error("frame " + std::to_string(index) + " out of range (" +
                 std::to_string(entries_.size()) + " frames)");
   }
-  const RgbdFrameEntry& entry = entries_[index];
-  RgbdFrame frame;
-  frame.index = index;
-  frame.timestamp = entry.timestamp;
-  frame.depth_timestamp = entry.depth_timestamp;
-
-  auto check_size = [&](const cv::Mat& image, const std::filesystem::path& path) {
-    if (image.cols != camera_.width || image.rows != camera_.height) {
-      throw Error(path.string() + ": image is " + std::to_string(image.cols) + "x" +
-                  std::to_string(image.rows) + ", the camera config says " +
-                  std::to_string(camera_.width) + "x" + std::to_string(camera_.height));
-    }
-  };
-
-  frame.bgr = cv::imread(entry.rgb_path.string(), cv::IMREAD_COLOR);
-  if (frame.bgr.empty()) throw Error(entry.rgb_path.string() + ": cannot decode image");
-  check_size(frame.bgr, entry.rgb_path);
-
-  const cv::Mat raw = cv::imread(entry.depth_path.string(), cv::IMREAD_UNCHANGED);
-  if (raw.empty()) throw Error(entry.depth_path.string() + ": cannot decode image");
-  if (raw.type() != CV_16UC1) {
-    throw Error(entry.depth_path.string() + ": depth must be a 16-bit single-channel PNG, found " +
-                std::to_string(raw.elemSize1() * 8) + "-bit with " +
-                std::to_string(raw.channels()) + " channel(s)");
-  }
-  check_size(raw, entry.depth_path);
-  raw.convertTo(frame.depth, CV_32F, 1.0 / camera_.depth_factor);
-  // Outside the sensor's range a reading is noise; zero means "no depth" everywhere downstream.
-  cv::Mat out_of_range = (frame.depth < camera_.depth_min) | (frame.depth > camera_.depth_max);
-  frame.depth.setTo(0.0f, out_of_range);
-  return frame;
+  return LoadRgbdFrame(entries_[index], index, camera_);
 }
 
 }  // namespace sdoslam

@@ -1,0 +1,138 @@
+#include "sdoslam/io/dataset.h"
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "sdoslam/core/error.h"
+
+namespace sdoslam {
+
+namespace {
+
+// The dataset's intrinsics with the run config's depth and rate settings.
+CameraOptions WithDepthSettings(CameraOptions intrinsics, const CameraOptions& config) {
+  intrinsics.depth_factor = config.depth_factor;
+  intrinsics.depth_min = config.depth_min;
+  intrinsics.depth_max = config.depth_max;
+  intrinsics.fps = config.fps;
+  intrinsics.from_dataset = false;
+  return intrinsics;
+}
+
+}  // namespace
+
+const char* ToString(DatasetLayout layout) {
+  switch (layout) {
+    case DatasetLayout::kAuto:
+      return "auto";
+    case DatasetLayout::kTum:
+      return "tum";
+    case DatasetLayout::kOmd:
+      return "omd";
+  }
+  return "?";
+}
+
+DatasetLayout ParseDatasetLayout(const std::string& name) {
+  for (DatasetLayout l : {DatasetLayout::kAuto, DatasetLayout::kTum, DatasetLayout::kOmd}) {
+    if (name == ToString(l)) return l;
+  }
+  throw Error("unknown layout '" + name + "' (known: auto, tum, omd)");
+}
+
+DatasetLayout DetectLayout(const std::filesystem::path& folder) {
+  if (!std::filesystem::is_directory(folder)) throw Error(folder.string() + ": no such folder");
+  const bool rgb = std::filesystem::exists(folder / "rgb.txt");
+  const bool depth = std::filesystem::exists(folder / "depth.txt");
+  const bool omd = IsOmdFolder(folder);
+  if ((rgb || depth) && omd) {
+    throw Error(folder.string() +
+                ": has both TUM lists (rgb.txt, depth.txt) and an OMD rgbd/rgbd.csv; choose one "
+                "with --layout tum|omd");
+  }
+  if (omd) return DatasetLayout::kOmd;
+  if (rgb && depth) return DatasetLayout::kTum;
+  if (rgb || depth) {
+    throw Error(folder.string() + ": a TUM sequence needs both rgb.txt and depth.txt; " +
+                (rgb ? "depth.txt" : "rgb.txt") + " is missing");
+  }
+  throw Error(folder.string() +
+              ": not a sequence folder: expected rgb.txt and depth.txt (TUM, Bonn, sdoslam "
+              "synth) or rgbd/rgbd.csv (Oxford Multi-motion)");
+}
+
+void DatasetOptions::Check() const {
+  tum.Check();
+  omd.Check();
+}
+
+RgbdDataset::RgbdDataset(const std::filesystem::path& folder, const CameraOptions& camera,
+                         const DatasetOptions& options)
+    : folder_(folder), camera_(camera) {
+  options.Check();
+  layout_ = options.layout == DatasetLayout::kAuto ? DetectLayout(folder) : options.layout;
+  if (layout_ == DatasetLayout::kOmd) {
+    const OmdSequence omd = ReadOmdSequence(folder, options.omd);
+    if (camera.from_dataset) camera_ = WithDepthSettings(omd.camera, camera);
+    entries_ = omd.entries;
+    if (!omd.ground_truth.empty()) ground_truth_ = omd.ground_truth;
+  } else {
+    if (camera.from_dataset) {
+      const std::filesystem::path own = folder / "camera.yaml";
+      if (!std::filesystem::exists(own)) {
+        throw Error(folder.string() +
+                    ": camera.from_dataset needs the dataset's calibration, and this TUM folder "
+                    "has no camera.yaml; give the camera's intrinsics in the config");
+      }
+      camera_ = WithDepthSettings(LoadCameraConfig(own), camera);
+    }
+    const TumDataset tum(folder, camera_, options.tum);
+    entries_ = tum.entries();
+    if (std::filesystem::exists(folder / "groundtruth.txt"))
+      ground_truth_ = ReadTumTrajectory(folder / "groundtruth.txt");
+  }
+  camera_.from_dataset = false;
+  camera_.Check();
+}
+
+RgbdFrame RgbdDataset::Load(size_t index) const {
+  if (index >= entries_.size()) {
+    throw Error("frame " + std::to_string(index) + " out of range (" +
+                std::to_string(entries_.size()) + " frames)");
+  }
+  return LoadRgbdFrame(entries_[index], index, camera_);
+}
+
+RgbdFrame LoadRgbdFrame(const RgbdFrameEntry& entry, size_t index, const CameraOptions& camera) {
+  RgbdFrame frame;
+  frame.index = index;
+  frame.timestamp = entry.timestamp;
+  frame.depth_timestamp = entry.depth_timestamp;
+
+  auto check_size = [&](const cv::Mat& image, const std::filesystem::path& path) {
+    if (image.cols != camera.width || image.rows != camera.height) {
+      throw Error(path.string() + ": image is " + std::to_string(image.cols) + "x" +
+                  std::to_string(image.rows) + ", the camera config says " +
+                  std::to_string(camera.width) + "x" + std::to_string(camera.height));
+    }
+  };
+
+  frame.bgr = cv::imread(entry.rgb_path.string(), cv::IMREAD_COLOR);
+  if (frame.bgr.empty()) throw Error(entry.rgb_path.string() + ": cannot decode image");
+  check_size(frame.bgr, entry.rgb_path);
+
+  const cv::Mat raw = cv::imread(entry.depth_path.string(), cv::IMREAD_UNCHANGED);
+  if (raw.empty()) throw Error(entry.depth_path.string() + ": cannot decode image");
+  if (raw.type() != CV_16UC1) {
+    throw Error(entry.depth_path.string() + ": depth must be a 16-bit single-channel PNG, found " +
+                std::to_string(raw.elemSize1() * 8) + "-bit with " +
+                std::to_string(raw.channels()) + " channel(s)");
+  }
+  check_size(raw, entry.depth_path);
+  raw.convertTo(frame.depth, CV_32F, 1.0 / camera.depth_factor);
+  // Outside the sensor's range a reading is noise; zero means "no depth" everywhere downstream.
+  cv::Mat out_of_range = (frame.depth < camera.depth_min) | (frame.depth > camera.depth_max);
+  frame.depth.setTo(0.0f, out_of_range);
+  return frame;
+}
+
+}  // namespace sdoslam

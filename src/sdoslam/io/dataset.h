@@ -1,0 +1,68 @@
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "sdoslam/core/camera.h"
+#include "sdoslam/io/omd.h"
+#include "sdoslam/io/trajectory.h"
+#include "sdoslam/io/tum_dataset.h"
+
+namespace sdoslam {
+
+// The folder layouts `sdoslam run` reads as published.
+enum class DatasetLayout {
+  kAuto,  // recognised by its files
+  kTum,   // TUM RGB-D, also Bonn RGB-D Dynamic and `sdoslam synth` output
+  kOmd,   // Oxford Multi-motion Dataset segment
+};
+const char* ToString(DatasetLayout layout);
+DatasetLayout ParseDatasetLayout(const std::string& name);  // throws naming the known ones
+
+// The layout of `folder` by its files: rgb.txt + depth.txt (TUM) or rgbd/rgbd.csv (OMD). Throws
+// Error naming what is missing when it is neither, or what clashes when it is both.
+DatasetLayout DetectLayout(const std::filesystem::path& folder);
+
+struct DatasetOptions {
+  DatasetLayout layout = DatasetLayout::kAuto;
+  TumDatasetOptions tum;
+  OmdOptions omd;
+  void Check() const;
+};
+
+// An RGB-D sequence of any supported layout: its frames, its camera and, where the folder has
+// it, the ground truth of that camera (TUM: groundtruth.txt; OMD: Vicon composed with the
+// calibration chain). Opening reads and validates every list, calibration and ground-truth
+// file, so a malformed one fails before the first frame is processed.
+class RgbdDataset {
+ public:
+  // `camera`: the run's camera config. With camera.from_dataset the intrinsics come from the
+  // folder (OMD: kalibr.yaml; TUM: camera.yaml), the depth settings still from `camera`.
+  RgbdDataset(const std::filesystem::path& folder, const CameraOptions& camera,
+              const DatasetOptions& options = {});
+
+  size_t size() const { return entries_.size(); }
+  const std::vector<RgbdFrameEntry>& entries() const { return entries_; }
+  const std::filesystem::path& folder() const { return folder_; }
+  DatasetLayout layout() const { return layout_; }
+  const CameraOptions& camera() const { return camera_; }  // resolved: intrinsics included
+  const std::optional<Trajectory>& ground_truth() const { return ground_truth_; }
+
+  // Decodes frame `index` (see LoadRgbdFrame).
+  RgbdFrame Load(size_t index) const;
+
+ private:
+  std::filesystem::path folder_;
+  DatasetLayout layout_ = DatasetLayout::kTum;
+  CameraOptions camera_;
+  std::vector<RgbdFrameEntry> entries_;
+  std::optional<Trajectory> ground_truth_;
+};
+
+// Decodes one frame's images. Throws Error naming the file when an image does not decode, has
+// the wrong size for the camera, or a depth image is not 16-bit single-channel.
+RgbdFrame LoadRgbdFrame(const RgbdFrameEntry& entry, size_t index, const CameraOptions& camera);
+
+}  // namespace sdoslam

@@ -1,0 +1,102 @@
+#include "sdoslam/io/dataset.h"
+
+#include <gtest/gtest.h>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "sdoslam/core/error.h"
+#include "sdoslam/testing/test_util.h"
+
+namespace sdoslam {
+namespace {
+
+// A two-frame OMD segment with 16 × 12 images, written by hand.
+void WriteOmd(const std::filesystem::path& dir) {
+  std::filesystem::create_directories(dir / "rgbd");
+  testing::WriteText(dir / "rgbd" / "rgbd.csv",
+                     "frame_num, time_sec, time_nsec\n1, 20, 0\n2, 20, 33333333\n");
+  for (const char* stem : {"000001", "000002"}) {
+    cv::imwrite((dir / "rgbd" / (std::string(stem) + "_color.png")).string(),
+                cv::Mat(12, 16, CV_8UC3, cv::Scalar(1, 2, 3)));
+    cv::imwrite((dir / "rgbd" / (std::string(stem) + "_aligned_depth.png")).string(),
+                cv::Mat(12, 16, CV_16UC1, cv::Scalar(1500)));
+  }
+  testing::WriteText(dir / "kalibr.yaml",
+                     "cam0:\n  intrinsics: [20, 21, 8, 6]\n  resolution: [16, 12]\n"
+                     "  rostopic: /camera/color/image_raw\n");
+}
+
+CameraOptions FromDataset() {
+  CameraOptions camera;
+  camera.from_dataset = true;
+  camera.depth_factor = 1000;
+  return camera;
+}
+
+TEST(DatasetLayout, IsRecognisedByItsFilesAndAMixedFolderIsRefused) {
+  testing::TempDir dir;
+  WriteOmd(dir / "omd");
+  EXPECT_EQ(DetectLayout(dir / "omd"), DatasetLayout::kOmd);
+  std::filesystem::create_directories(dir / "tum");
+  testing::WriteText(dir / "tum" / "rgb.txt", "");
+  EXPECT_NE(testing::MessageOf([&] { DetectLayout(dir / "tum"); }).find("depth.txt is missing"),
+            std::string::npos);
+  testing::WriteText(dir / "tum" / "depth.txt", "");
+  EXPECT_EQ(DetectLayout(dir / "tum"), DatasetLayout::kTum);
+  testing::WriteText(dir / "omd" / "rgb.txt", "");
+  EXPECT_NE(testing::MessageOf([&] { DetectLayout(dir / "omd"); }).find("has both TUM lists"),
+            std::string::npos);
+  std::filesystem::create_directories(dir / "empty");
+  EXPECT_NE(testing::MessageOf([&] { DetectLayout(dir / "empty"); })
+                .find("expected rgb.txt and depth.txt (TUM, Bonn, sdoslam synth) or "
+                      "rgbd/rgbd.csv (Oxford Multi-motion)"),
+            std::string::npos);
+  EXPECT_THROW(ParseDatasetLayout("kitti"), Error);
+}
+
+TEST(Dataset, TakesTheIntrinsicsFromAnOmdCalibrationAndTheDepthScaleFromTheConfig) {
+  testing::TempDir dir;
+  WriteOmd(dir.path());
+  const RgbdDataset dataset(dir.path(), FromDataset());
+  EXPECT_EQ(dataset.layout(), DatasetLayout::kOmd);
+  ASSERT_EQ(dataset.size(), 2u);
+  EXPECT_EQ(dataset.camera().fy, 21);
+  EXPECT_EQ(dataset.camera().width, 16);
+  EXPECT_FALSE(dataset.camera().from_dataset);
+  EXPECT_FALSE(dataset.ground_truth().has_value());  // no vicon.csv: frames only
+  const RgbdFrame frame = dataset.Load(1);
+  EXPECT_NEAR(frame.timestamp, 20.033333333, 1e-9);
+  EXPECT_FLOAT_EQ(frame.depth.at<float>(5, 5), 1.5f);
+}
+
+TEST(Dataset, CameraFromATumFolderNeedsItsCameraYaml) {
+  testing::TempDir dir;
+  testing::WriteText(dir / "rgb.txt", "");
+  testing::WriteText(dir / "depth.txt", "");
+  EXPECT_NE(testing::MessageOf([&] {
+              RgbdDataset(dir.path(), FromDataset());
+            }).find("has no camera.yaml"),
+            std::string::npos);
+}
+
+TEST(Dataset, AMalformedGroundTruthFailsWhenTheDatasetIsOpened) {
+  testing::TempDir dir;
+  std::filesystem::create_directories(dir / "rgb");
+  std::filesystem::create_directories(dir / "depth");
+  cv::imwrite((dir / "rgb" / "1.png").string(), cv::Mat(12, 16, CV_8UC3, cv::Scalar(1, 2, 3)));
+  cv::imwrite((dir / "depth" / "1.png").string(), cv::Mat(12, 16, CV_16UC1, cv::Scalar(9)));
+  testing::WriteText(dir / "rgb.txt", "1.0 rgb/1.png\n");
+  testing::WriteText(dir / "depth.txt", "1.0 depth/1.png\n");
+  testing::WriteText(dir / "groundtruth.txt", "1.0 0 0 0 0 0 0\n");
+  CameraOptions camera;
+  camera.width = 16;
+  camera.height = 12;
+  camera.fx = camera.fy = 20;
+  camera.cx = 8;
+  camera.cy = 6;
+  EXPECT_NE(testing::MessageOf([&] { RgbdDataset(dir.path(), camera); }).find("groundtruth.txt:1"),
+            std::string::npos);
+}
+
+}  // namespace
+}  // namespace sdoslam
