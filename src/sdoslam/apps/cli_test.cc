@@ -164,6 +164,35 @@ TEST_F(CliRun, WritesTrajectoriesLogAndEvaluates) {
   EXPECT_EQ(again.exit_code, 0) << again.output;
 }
 
+// The user's round: a sequence written as an OMD segment, run by path with the shipped OMD
+// config (intrinsics from its kalibr.yaml), converted back to TUM; wrong layouts are named.
+TEST_F(CliRun, OmdSegmentsRunByPathAndConvertToTum) {
+  const std::string omd = (dir_ / "omd").string();
+  Result r = RunSdoslam("synth --scenario static_room --frames 35 --layout omd --out " + omd);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string config = (testing::SourceDir() / "configs" / "omd.yaml").string();
+  r = RunSdoslam("run --dataset " + omd + " --config " + config + " --out " +
+                 (dir_ / "out_omd").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("35 frames: 35 tracked, 0 lost"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("ATE rmse"), std::string::npos) << r.output;  // from vicon.csv
+  EXPECT_NE(testing::ReadText(dir_ / "out_omd" / "config.yaml").find("fx: 535.39"),
+            std::string::npos);  // the resolved intrinsics are recorded
+
+  r = RunSdoslam("convert --dataset " + omd + " --to tum --out " + (dir_ / "as_tum").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(ReadTumTrajectory(dir_ / "as_tum" / "groundtruth.txt").size(), 35u);
+  r = RunSdoslam("run --dataset " + (dir_ / "as_tum").string() + " --config " +
+                 (dir_ / "as_tum" / "camera.yaml").string() + " --max-frames 5 --out " +
+                 (dir_ / "out_tum").string());
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+
+  r = RunSdoslam("run --dataset " + (dir_ / "seq").string() + " --layout omd --config " + config +
+                 " --out " + (dir_ / "out_bad").string());
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("not an OMD segment (no rgbd/rgbd.csv)"), std::string::npos) << r.output;
+}
+
 TEST_F(CliRun, SequentialTwiceGivesIdenticalTrajectoryFiles) {
   std::string files[2];
   for (int k = 0; k < 2; ++k) {

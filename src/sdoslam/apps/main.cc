@@ -6,6 +6,7 @@
 #include <iostream>
 
 #include "sdoslam/apps/bench_command.h"
+#include "sdoslam/apps/convert_command.h"
 #include "sdoslam/apps/demo_command.h"
 #include "sdoslam/apps/eval_command.h"
 #include "sdoslam/apps/eval_masks_command.h"
@@ -27,6 +28,7 @@ int main(int argc, char** argv) {
   sdoslam::AddRunCommand(app);
   sdoslam::AddBenchCommand(app);
   sdoslam::AddEvalMasksCommand(app);
+  sdoslam::AddConvertCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -8,6 +8,7 @@
 
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
+#include "sdoslam/io/omd.h"
 #include "sdoslam/synth/real_background.h"
 #include "sdoslam/synth/sequence.h"
 
@@ -30,6 +31,8 @@ struct SynthArgs {
   std::string camera;
   bool forward_backward = false;
   bool frames_given = false;
+  std::string layout = "tum";
+  double depth_factor = 5000.0;
 };
 
 // `--background`: the scenario's objects rendered into a real recording.
@@ -88,6 +91,8 @@ void RunSynth(const SynthArgs& args) {
   if (!args.background.empty()) {
     if (!args.motion.empty()) throw Error("--motion does not apply with --background");
     if (args.exposure_changes) throw Error("--exposure-changes does not apply with --background");
+    if (args.layout != "tum" || args.depth_factor != 5000.0)
+      throw Error("--layout and --depth-factor do not apply with --background");
     RunBackgroundSynth(args);
     return;
   }
@@ -102,7 +107,26 @@ void RunSynth(const SynthArgs& args) {
   options.sensor.enabled = !args.no_noise;
   options.sensor.motion_blur_samples = args.motion_blur;
   options.sensor.exposure_changes = args.exposure_changes;
-  const synth::SequenceSummary s = synth::WriteSequence(options, args.out, args.overwrite);
+  options.depth_factor = args.depth_factor;
+  synth::SequenceSummary s;
+  if (args.layout == "omd") {
+    // Rendered in the TUM layout beside `out`, then rewritten as an OMD segment.
+    if (std::filesystem::exists(args.out) && !std::filesystem::is_empty(args.out)) {
+      if (!args.overwrite) throw Error(args.out + " exists; pass --overwrite to replace it");
+      std::filesystem::remove_all(args.out);
+    }
+    const std::filesystem::path tum = args.out + ".tum-staging";
+    s = synth::WriteSequence(options, tum, /*overwrite=*/true);
+    try {
+      WriteOmdFromTum(tum, args.out, OmdWriteOptions::ExampleApparatus());
+    } catch (...) {
+      std::filesystem::remove_all(tum);
+      throw;
+    }
+    std::filesystem::remove_all(tum);
+  } else {
+    s = synth::WriteSequence(options, args.out, args.overwrite);
+  }
   std::cout << fmt::format(
       "wrote {} frames of '{}' to {} in {:.1f} s ({:.1f} ms/frame rendering)\n"
       "moving objects cover {:.0f} % of the image on average, {:.0f} % at most\n",
@@ -141,6 +165,18 @@ void AddSynthCommand(CLI::App& app) {
                   "camera config of the --background recording (default: its camera.yaml)");
   cmd->add_flag("--forward-backward", args->forward_backward,
                 "play the --background recording forward, then backward");
+  cmd->add_option("--layout", args->layout,
+                  "tum (default: rgb/, depth/, lists, ground truth, masks, detections) or omd (an "
+                  "Oxford Multi-motion segment: rgbd/, vicon.csv with the apparatus and objects "
+                  "at 200 Hz, vicon.yaml and kalibr.yaml with a non-trivial camera chain; no "
+                  "masks)")
+      ->check(CLI::IsMember({"tum", "omd"}))
+      ->capture_default_str();
+  cmd->add_option("--depth-factor", args->depth_factor,
+                  "raw depth units per metre in the depth PNGs (TUM 5000; 1000 = millimetres, "
+                  "as OMD and Bonn)")
+      ->check(CLI::Range(100.0, 8000.0))
+      ->capture_default_str();
   cmd->add_flag("--overwrite", args->overwrite, "replace an existing output folder");
   cmd->add_flag("--list", args->list, "list the scenarios and camera motions");
   cmd->add_option("--contact-sheet", args->contact_sheet,

@@ -1,7 +1,11 @@
 #include "sdoslam/io/dataset.h"
 
+#include <fmt/format.h>
+#include <yaml-cpp/yaml.h>
+
 #include <opencv2/imgcodecs.hpp>
 
+#include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
 
 namespace sdoslam {
@@ -75,6 +79,7 @@ RgbdDataset::RgbdDataset(const std::filesystem::path& folder, const CameraOption
     if (camera.from_dataset) camera_ = WithDepthSettings(omd.camera, camera);
     entries_ = omd.entries;
     if (!omd.ground_truth.empty()) ground_truth_ = omd.ground_truth;
+    bodies_ = omd.bodies;
   } else {
     if (camera.from_dataset) {
       const std::filesystem::path own = folder / "camera.yaml";
@@ -133,6 +138,42 @@ RgbdFrame LoadRgbdFrame(const RgbdFrameEntry& entry, size_t index, const CameraO
   cv::Mat out_of_range = (frame.depth < camera.depth_min) | (frame.depth > camera.depth_max);
   frame.depth.setTo(0.0f, out_of_range);
   return frame;
+}
+
+void WriteTumCopy(const RgbdDataset& dataset, const std::filesystem::path& out) {
+  if (std::filesystem::exists(out) && !std::filesystem::is_empty(out))
+    throw Error(out.string() + " exists and is not empty");
+  const std::filesystem::path staging = out.string() + ".staging";
+  std::filesystem::remove_all(staging);
+  std::filesystem::create_directories(staging / "rgb");
+  std::filesystem::create_directories(staging / "depth");
+  std::string rgb = "# color images\n# timestamp filename\n";
+  std::string depth = "# depth maps\n# timestamp filename\n";
+  for (const RgbdFrameEntry& e : dataset.entries()) {
+    const std::string rgb_name = fmt::format("rgb/{:.6f}.png", e.timestamp);
+    const std::string depth_name = fmt::format("depth/{:.6f}.png", e.depth_timestamp);
+    std::filesystem::copy_file(e.rgb_path, staging / rgb_name);
+    std::filesystem::copy_file(e.depth_path, staging / depth_name);
+    rgb += fmt::format("{:.6f} {}\n", e.timestamp, rgb_name);
+    depth += fmt::format("{:.6f} {}\n", e.depth_timestamp, depth_name);
+  }
+  WriteFileAtomically(staging / "rgb.txt", [&](std::ostream& o) { o << rgb; });
+  WriteFileAtomically(staging / "depth.txt", [&](std::ostream& o) { o << depth; });
+  YAML::Emitter camera;
+  camera << YAML::BeginMap;
+  WriteCameraOptions(dataset.camera(), &camera);
+  camera << YAML::EndMap;
+  WriteFileAtomically(staging / "camera.yaml",
+                      [&](std::ostream& o) { o << camera.c_str() << '\n'; });
+  if (dataset.ground_truth())
+    WriteTumTrajectory(staging / "groundtruth.txt", *dataset.ground_truth());
+  if (!dataset.bodies().empty()) {
+    std::filesystem::create_directories(staging / "bodies");
+    for (const auto& [name, trajectory] : dataset.bodies())
+      WriteTumTrajectory(staging / "bodies" / (name + ".txt"), trajectory);
+  }
+  std::filesystem::remove_all(out);
+  std::filesystem::rename(staging, out);
 }
 
 }  // namespace sdoslam

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <filesystem>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -49,6 +50,8 @@ class RgbdDataset {
   DatasetLayout layout() const { return layout_; }
   const CameraOptions& camera() const { return camera_; }  // resolved: intrinsics included
   const std::optional<Trajectory>& ground_truth() const { return ground_truth_; }
+  // Other tracked bodies with their ground truth (OMD: the moving objects, T_world_body).
+  const std::map<std::string, Trajectory>& bodies() const { return bodies_; }
 
   // Decodes frame `index` (see LoadRgbdFrame).
   RgbdFrame Load(size_t index) const;
@@ -59,7 +62,14 @@ class RgbdDataset {
   CameraOptions camera_;
   std::vector<RgbdFrameEntry> entries_;
   std::optional<Trajectory> ground_truth_;
+  std::map<std::string, Trajectory> bodies_;
 };
+
+// Writes `dataset` in the TUM layout at `out` (which must not exist or be empty): images copied
+// as they are (rgb/, depth/ named by timestamp), rgb.txt, depth.txt, camera.yaml (the resolved
+// camera, depth factor included), groundtruth.txt and bodies/<name>.txt where it has them. For
+// evo, the TUM tools and anything else that reads TUM. Staged, then moved into place.
+void WriteTumCopy(const RgbdDataset& dataset, const std::filesystem::path& out);
 
 // Decodes one frame's images. Throws Error naming the file when an image does not decode, has
 // the wrong size for the camera, or a depth image is not 16-bit single-channel.

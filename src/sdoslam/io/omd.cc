@@ -349,6 +349,18 @@ void AddViconRows(const std::string& body, const Trajectory& trajectory,
 
 }  // namespace
 
+OmdWriteOptions OmdWriteOptions::ExampleApparatus() {
+  OmdWriteOptions o;
+  o.T_apparatus_left.linear() = (Eigen::AngleAxisd(-M_PI / 2, Eigen::Vector3d::UnitZ()) *
+                                 Eigen::AngleAxisd(-M_PI / 2, Eigen::Vector3d::UnitX()))
+                                    .toRotationMatrix();
+  o.T_apparatus_left.translation() = Eigen::Vector3d(0.10, 0.0, -0.05);
+  o.T_cam1_cam0.translation() = Eigen::Vector3d(-0.11, 0, 0);
+  o.T_cam2_cam1.linear() = Eigen::AngleAxisd(0.02, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  o.T_cam2_cam1.translation() = Eigen::Vector3d(-0.06, 0.004, 0.002);
+  return o;
+}
+
 void WriteOmdFromTum(const std::filesystem::path& tum, const std::filesystem::path& out,
                      const OmdWriteOptions& options) {
   if (!(options.vicon_rate_hz > 0)) throw Error("vicon_rate_hz must be positive");

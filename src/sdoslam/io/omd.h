@@ -79,6 +79,10 @@ bool IsOmdFolder(const std::filesystem::path& folder);
 // vicon.csv with the apparatus and every object sampled at `vicon_rate_hz` between the frames.
 // The given extrinsics are what a reader must undo to recover the camera's trajectory.
 struct OmdWriteOptions {
+  // A plausible apparatus: the left camera 5 cm below and 10 cm ahead of the Vicon body's
+  // origin, turned from its z-up frame to the camera's z-forward one; an 11 cm stereo pair; the
+  // colour camera 6 cm right of the right camera's centre, slightly turned.
+  static OmdWriteOptions ExampleApparatus();
   double vicon_rate_hz = 200.0;
   Eigen::Isometry3d T_apparatus_left = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d T_cam1_cam0 = Eigen::Isometry3d::Identity();  // right stereo from left

@@ -7,6 +7,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "sdoslam/core/error.h"
+#include "sdoslam/io/dataset.h"
 #include "sdoslam/testing/test_util.h"
 
 namespace sdoslam {
@@ -207,6 +208,37 @@ TEST(OmdSequence, WrittenFromTumAndReadBackGivesTheCameraTrajectoryAndImages) {
              tum[0].T_world_camera.translation())
                 .norm(),
             0.05);
+}
+
+TEST(OmdSequence, ConvertedToTumKeepsTheFramesTheCameraAndTheGroundTruth) {
+  testing::TempDir dir;
+  WriteTumSequence(dir / "tum", 4);
+  WriteOmdFromTum(dir / "tum", dir / "omd", Extrinsics());
+  CameraOptions camera;
+  camera.from_dataset = true;
+  camera.depth_factor = 1000;
+  const RgbdDataset omd(dir / "omd", camera);
+  WriteTumCopy(omd, dir / "back");
+  const RgbdDataset back(dir / "back", LoadCameraConfig(dir / "back" / "camera.yaml"));
+  ASSERT_EQ(back.size(), 4u);
+  EXPECT_EQ(back.camera().fy, 31);
+  EXPECT_EQ(back.camera().depth_factor, 1000);
+  for (size_t k = 0; k < 4; ++k) {
+    EXPECT_NEAR(back.entries()[k].timestamp, omd.entries()[k].timestamp, 1e-6);
+    const RgbdFrame a = omd.Load(k), b = back.Load(k);
+    EXPECT_EQ(cv::norm(a.bgr, b.bgr, cv::NORM_INF), 0);
+    EXPECT_EQ(cv::norm(a.depth, b.depth, cv::NORM_INF), 0);
+  }
+  ASSERT_TRUE(back.ground_truth().has_value());
+  const Trajectory original = ReadTumTrajectory(dir / "tum" / "groundtruth.txt");
+  ASSERT_EQ(back.ground_truth()->size(), original.size());
+  for (size_t k = 0; k < original.size(); ++k) {
+    EXPECT_LT((back.ground_truth()->at(k).T_world_camera.translation() -
+               original[k].T_world_camera.translation())
+                  .norm(),
+              1e-4);
+  }
+  EXPECT_TRUE(std::filesystem::exists(dir / "back" / "bodies" / "object_4.txt"));
 }
 
 TEST(OmdSequence, BadFoldersAreClearErrors) {

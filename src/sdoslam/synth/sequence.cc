@@ -1,5 +1,6 @@
 #include "sdoslam/synth/sequence.h"
 
+#include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
 
 #include <chrono>
@@ -15,6 +16,10 @@ void SynthOptions::Check() const {
   if (frames < 1 || frames > 100000) throw Error("frames must be in 1..100000");
   if (!std::isfinite(first_timestamp) || first_timestamp < 0)
     throw Error("first timestamp must be >= 0");
+  // The farthest depth the synthetic camera reports must fit 16 bits.
+  if (!(depth_factor >= 100 && depth_factor * SyntheticCamera().depth_max <= 65535))
+    throw Error(
+        fmt::format("depth factor must be in 100..{:.0f}", 65535 / SyntheticCamera().depth_max));
   sensor.Check();
   MakeScenario(scenario, 1.0, motion);  // throws for an unknown name
 }
@@ -23,7 +28,8 @@ SequenceSummary WriteSequence(const SynthOptions& options, const std::filesystem
                               bool overwrite) {
   options.Check();
   const auto start = std::chrono::steady_clock::now();
-  const CameraOptions camera_options = SyntheticCamera();
+  CameraOptions camera_options = SyntheticCamera();
+  camera_options.depth_factor = options.depth_factor;
   const Camera camera(camera_options);
   const double dt = 1.0 / camera_options.fps;
   const double duration = (options.frames - 1) * dt;

@@ -18,13 +18,16 @@ struct SynthOptions {
   int frames = 300;                    // at the camera's 30 Hz
   uint32_t seed = 1;                   // sensor noise; same seed ⇒ byte-identical files
   double first_timestamp = 1000.0;     // seconds
+  // Raw depth units per metre in the 16-bit depth PNGs (TUM: 5000; OMD and Bonn's RealSense and
+  // Kinect v2: 1000, millimetres).
+  double depth_factor = 5000.0;
   SensorOptions sensor;
   void Check() const;
 };
 
 // Renders the sequence and writes, into `out`:
-//   rgb/, depth/ (16-bit, factor 5000), rgb.txt, depth.txt, groundtruth.txt, camera.yaml  (TUM)
-//   instance/ (16-bit object ids; 0 = static structure), dynamic/ (8-bit, 255 = moving now),
+//   rgb/, depth/ (16-bit, options.depth_factor), rgb.txt, depth.txt, groundtruth.txt, camera.yaml
+//   (TUM) instance/ (16-bit object ids; 0 = static structure), dynamic/ (8-bit, 255 = moving now),
 //   detections.json (known-class boxes per frame), objects.json, object_poses.txt,
 //   sequence.yaml (how it was made).
 // Everything is written to a sibling folder first and moved into place at the end, so a failed
