@@ -57,8 +57,8 @@ void AddConvertCommand(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "convert", "write a sequence (TUM, OMD) in the TUM layout, for evo and the TUM tools");
   cmd->add_option("--dataset", args->dataset, "sequence folder")->required();
-  cmd->add_option("--layout", args->layout, "its layout: auto (by its files), tum, omd")
-      ->check(CLI::IsMember({"auto", "tum", "omd"}));
+  cmd->add_option("--layout", args->layout, "its layout: auto (by its files), tum, omd, bonn")
+      ->check(CLI::IsMember({"auto", "tum", "omd", "bonn"}));
   cmd->add_option("--config", args->config,
                   "camera config (default: OMD kalibr.yaml's colour camera with millimetre "
                   "depth; TUM: the folder's camera.yaml)");

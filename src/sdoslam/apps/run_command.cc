@@ -59,8 +59,10 @@ void AddRunCommand(CLI::App& app) {
                   "sequence folder: TUM layout (rgb.txt, depth.txt, rgb/, depth/) or an OMD "
                   "segment (rgbd/, vicon.csv, vicon.yaml, kalibr.yaml)")
       ->required();
-  cmd->add_option("--layout", args->layout, "folder layout: auto (by its files), tum, omd")
-      ->check(CLI::IsMember({"auto", "tum", "omd"}));
+  cmd->add_option("--layout", args->layout,
+                  "folder layout: auto (by its files; rgbd_bonn_* folders are bonn), tum, omd, "
+                  "bonn (TUM files, ground truth of the markers brought to the camera)")
+      ->check(CLI::IsMember({"auto", "tum", "omd", "bonn"}));
   cmd->add_option(
          "--config", args->config,
          "config YAML: camera: and optional orb:, rgbd:, tracking:, consistency:, mapping:, "

@@ -32,15 +32,37 @@ const char* ToString(DatasetLayout layout) {
       return "tum";
     case DatasetLayout::kOmd:
       return "omd";
+    case DatasetLayout::kBonn:
+      return "bonn";
   }
   return "?";
 }
 
 DatasetLayout ParseDatasetLayout(const std::string& name) {
-  for (DatasetLayout l : {DatasetLayout::kAuto, DatasetLayout::kTum, DatasetLayout::kOmd}) {
+  for (DatasetLayout l :
+       {DatasetLayout::kAuto, DatasetLayout::kTum, DatasetLayout::kOmd, DatasetLayout::kBonn}) {
     if (name == ToString(l)) return l;
   }
-  throw Error("unknown layout '" + name + "' (known: auto, tum, omd)");
+  throw Error("unknown layout '" + name + "' (known: auto, tum, omd, bonn)");
+}
+
+Trajectory BonnCameraTrajectory(const Trajectory& markers) {
+  Eigen::Matrix4d ros;
+  ros << -1, 0, 0, 0, 0, 0, 1, 0, 0, 1, 0, 0, 0, 0, 0, 1;
+  Eigen::Matrix4d m;
+  m << 1.0157, 0.1828, -0.2389, 0.0113, 0.0009, -0.8431, -0.6413, -0.0098, -0.3009, 0.6147, -0.8085,
+      0.0111, 0, 0, 0, 1;
+  // The nearest rotation to the scaled block: U·Vᵀ of its SVD.
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(m.topLeftCorner<3, 3>(),
+                                              Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Isometry3d T_ros(ros), T_m = Eigen::Isometry3d::Identity();
+  T_m.linear() = svd.matrixU() * svd.matrixV().transpose();
+  T_m.translation() = m.topRightCorner<3, 1>();
+  Trajectory out;
+  out.reserve(markers.size());
+  for (const StampedPose& p : markers)
+    out.push_back({p.timestamp, T_ros * p.T_world_camera * T_ros * T_m});
+  return out;
 }
 
 DatasetLayout DetectLayout(const std::filesystem::path& folder) {
@@ -54,7 +76,15 @@ DatasetLayout DetectLayout(const std::filesystem::path& folder) {
                 "with --layout tum|omd");
   }
   if (omd) return DatasetLayout::kOmd;
-  if (rgb && depth) return DatasetLayout::kTum;
+  if (rgb && depth) {
+    const std::string name =
+        std::filesystem::absolute(folder).lexically_normal().filename().string();
+    const std::string parent_name =
+        std::filesystem::absolute(folder).lexically_normal().parent_path().filename().string();
+    const bool bonn = name.rfind("rgbd_bonn_", 0) == 0 ||
+                      (name.empty() && parent_name.rfind("rgbd_bonn_", 0) == 0);
+    return bonn ? DatasetLayout::kBonn : DatasetLayout::kTum;
+  }
   if (rgb || depth) {
     throw Error(folder.string() + ": a TUM sequence needs both rgb.txt and depth.txt; " +
                 (rgb ? "depth.txt" : "rgb.txt") + " is missing");
@@ -92,8 +122,10 @@ RgbdDataset::RgbdDataset(const std::filesystem::path& folder, const CameraOption
     }
     const TumDataset tum(folder, camera_, options.tum);
     entries_ = tum.entries();
-    if (std::filesystem::exists(folder / "groundtruth.txt"))
+    if (std::filesystem::exists(folder / "groundtruth.txt")) {
       ground_truth_ = ReadTumTrajectory(folder / "groundtruth.txt");
+      if (layout_ == DatasetLayout::kBonn) ground_truth_ = BonnCameraTrajectory(*ground_truth_);
+    }
   }
   camera_.from_dataset = false;
   camera_.Check();

@@ -18,11 +18,23 @@ enum class DatasetLayout {
   kAuto,  // recognised by its files
   kTum,   // TUM RGB-D, also Bonn RGB-D Dynamic and `sdoslam synth` output
   kOmd,   // Oxford Multi-motion Dataset segment
+  // Bonn RGB-D Dynamic: the TUM layout, but its groundtruth.txt is the motion-capture markers'
+  // pose, which BonnCameraTrajectory brings to the camera. Auto-detected by the dataset's folder
+  // names (rgbd_bonn_*).
+  kBonn,
 };
 const char* ToString(DatasetLayout layout);
 DatasetLayout ParseDatasetLayout(const std::string& name);  // throws naming the known ones
 
-// The layout of `folder` by its files: rgb.txt + depth.txt (TUM) or rgbd/rgbd.csv (OMD). Throws
+// The camera's trajectory from a Bonn RGB-D Dynamic groundtruth.txt (the markers'), with the
+// transforms the dataset's page gives: T_camera = T_ros · T_marker · T_ros · T_m, where T_ros is
+// a fixed axis change and T_m the marker-to-camera calibration. The published T_m's 3×3 block
+// is a rotation scaled by 1.06 (its rows are orthogonal, each of norm 1.059); we take its
+// rotation (the nearest orthonormal matrix), so that poses stay rigid.
+Trajectory BonnCameraTrajectory(const Trajectory& markers);
+
+// The layout of `folder` by its files: rgb.txt + depth.txt (TUM; Bonn when the folder is named
+// rgbd_bonn_*) or rgbd/rgbd.csv (OMD). Throws
 // Error naming what is missing when it is neither, or what clashes when it is both.
 DatasetLayout DetectLayout(const std::filesystem::path& folder);
 

@@ -43,6 +43,9 @@ TEST(DatasetLayout, IsRecognisedByItsFilesAndAMixedFolderIsRefused) {
             std::string::npos);
   testing::WriteText(dir / "tum" / "depth.txt", "");
   EXPECT_EQ(DetectLayout(dir / "tum"), DatasetLayout::kTum);
+  std::filesystem::rename(dir / "tum", dir / "rgbd_bonn_crowd");
+  EXPECT_EQ(DetectLayout(dir / "rgbd_bonn_crowd"), DatasetLayout::kBonn);
+  EXPECT_EQ(DetectLayout(dir / "rgbd_bonn_crowd" / ""), DatasetLayout::kBonn);
   testing::WriteText(dir / "omd" / "rgb.txt", "");
   EXPECT_NE(testing::MessageOf([&] { DetectLayout(dir / "omd"); }).find("has both TUM lists"),
             std::string::npos);
@@ -52,6 +55,23 @@ TEST(DatasetLayout, IsRecognisedByItsFilesAndAMixedFolderIsRefused) {
                       "rgbd/rgbd.csv (Oxford Multi-motion)"),
             std::string::npos);
   EXPECT_THROW(ParseDatasetLayout("kitti"), Error);
+}
+
+// A case worked by hand: the markers at (1, 2, 3), unrotated. T_ros · T_marker · T_ros is then
+// a pure translation by R_ros·(1, 2, 3) = (−1, 3, 2), after which T_m adds its own offset.
+TEST(BonnGroundTruth, BringsTheMarkersToTheCamera) {
+  StampedPose marker;
+  marker.timestamp = 3.0;
+  marker.T_world_camera.translation() = Eigen::Vector3d(1, 2, 3);
+  const Trajectory camera = BonnCameraTrajectory({marker});
+  ASSERT_EQ(camera.size(), 1u);
+  EXPECT_TRUE(camera[0].T_world_camera.translation().isApprox(
+      Eigen::Vector3d(-1 + 0.0113, 3 - 0.0098, 2 + 0.0111), 1e-12));
+  const Eigen::Matrix3d R = camera[0].T_world_camera.linear();
+  EXPECT_LT((R.transpose() * R - Eigen::Matrix3d::Identity()).norm(), 1e-9);  // rigid
+  // The optical axis: T_m's third column, without its 1.059 scale.
+  EXPECT_TRUE((R * Eigen::Vector3d::UnitZ())
+                  .isApprox(Eigen::Vector3d(-0.2389, -0.6413, -0.8085).normalized(), 1e-3));
 }
 
 TEST(Dataset, TakesTheIntrinsicsFromAnOmdCalibrationAndTheDepthScaleFromTheConfig) {
