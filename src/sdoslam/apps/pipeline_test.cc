@@ -3,7 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include <map>
 #include <opencv2/imgcodecs.hpp>
+#include <optional>
 
 #include "sdoslam/core/error.h"
 #include "sdoslam/io/omd.h"
@@ -341,31 +343,63 @@ namespace {
 // Issue 15: boxes swinging through the real desk recording, played forward and back (99 real
 // frames, real trajectory). The scene-flow check must take them out: without it the boxes drag
 // the pose (sdo without the check 50 mm, conventional 65 mm; with it 9.5 mm, oracle 5.1 mm).
-TEST(PipelineRealBackground, SwingingBoxesOverTheRealDeskAreTakenOut) {
+struct RealBackgroundResult {
+  std::map<RunMode, double> ate;
+  std::map<RunMode, size_t> tracked;
+  MaskEvaluation sdo_masks;
+};
+
+// A scenario rendered into the real desk clip, played forward and back (99 frames), run in the
+// given modes; nullopt when the shared data is absent.
+std::optional<RealBackgroundResult> RunOverTheRealDesk(const std::string& scenario,
+                                                       const std::vector<RunMode>& modes) {
   const auto desk = testing::SharedDir() / "data" / "tum_fr2_desk_50";
-  if (!std::filesystem::is_directory(desk)) GTEST_SKIP() << desk << " absent";
+  if (!std::filesystem::is_directory(desk)) return std::nullopt;
   testing::TempDir dir;
   synth::BackgroundSynthOptions options;
   options.background = desk;
   options.camera = LoadCameraConfig(testing::SourceDir() / "configs" / "tum_fr2.yaml");
-  options.scenario = "swinging_boxes";
+  options.scenario = scenario;
   options.forward_backward = true;
   synth::WriteBackgroundSequence(options, dir / "seq");
   RunOptions run;
   run.dataset = dir / "seq";
   run.camera = options.camera;
   run.slam.sequential = true;
-  double ate[2];
-  for (RunMode mode : {RunMode::kConventional, RunMode::kSdo}) {
+  RealBackgroundResult result;
+  for (RunMode mode : modes) {
     run.mode = mode;
     run.out = dir / ToString(mode);
     const RunSummary s = RunOnDataset(run);
-    ASSERT_TRUE(s.evaluation.has_value());
-    EXPECT_EQ(s.tracked, 99u) << ToString(mode);
-    ate[mode == RunMode::kSdo] = s.evaluation->ate.translation.rmse;
+    EXPECT_TRUE(s.evaluation.has_value());
+    result.ate[mode] = s.evaluation ? s.evaluation->ate.translation.rmse : 1e9;
+    result.tracked[mode] = s.tracked;
+    if (mode == RunMode::kSdo && s.masks) result.sdo_masks = *s.masks;
   }
-  EXPECT_LT(ate[1], 0.015) << "sdo " << ate[1];
-  EXPECT_LT(ate[1], 0.3 * ate[0]) << "conventional " << ate[0] << " sdo " << ate[1];
+  return result;
+}
+
+TEST(PipelineRealBackground, SwingingBoxesOverTheRealDeskAreTakenOut) {
+  const auto r = RunOverTheRealDesk("swinging_boxes",
+                                    {RunMode::kConventional, RunMode::kOracle, RunMode::kSdo});
+  if (!r) GTEST_SKIP() << "tum_fr2_desk_50 absent";
+  EXPECT_EQ(r->tracked.at(RunMode::kSdo), 99u);
+  const double sdo = r->ate.at(RunMode::kSdo), oracle = r->ate.at(RunMode::kOracle);
+  EXPECT_LE(sdo, 1.3 * oracle + 0.002) << "sdo " << sdo << " oracle " << oracle;
+  EXPECT_LT(sdo, 0.3 * r->ate.at(RunMode::kConventional));
+}
+
+// A large textured box carried in front of the camera (26 % of the image, more corners than the
+// desk): most features are on it, and before the static world was chosen by area, tracking
+// followed the box (102 mm against the oracle's 4.1).
+TEST(PipelineRealBackground, ABoxCarriedWithTheCameraDoesNotCaptureThePose) {
+  const auto r = RunOverTheRealDesk("carried_box", {RunMode::kOracle, RunMode::kSdo});
+  if (!r) GTEST_SKIP() << "tum_fr2_desk_50 absent";
+  EXPECT_EQ(r->tracked.at(RunMode::kSdo), 99u);
+  const double sdo = r->ate.at(RunMode::kSdo), oracle = r->ate.at(RunMode::kOracle);
+  EXPECT_LE(sdo, 1.3 * oracle + 0.002) << "sdo " << sdo << " oracle " << oracle;
+  ASSERT_EQ(r->sdo_masks.per_class.count("unknown"), 1u);
+  EXPECT_GE(r->sdo_masks.per_class.at("unknown").Iou(), 0.6);
 }
 
 }  // namespace

@@ -31,6 +31,7 @@ void SceneFlowOptions::Check() const {
     throw Error("consistency.depth_window_radius must be in [0, 10]");
   if (!(max_segment_area > 0 && max_segment_area <= 1))
     throw Error("consistency.max_segment_area must be in (0, 1]");
+  static_motion.Check();
 }
 
 std::vector<uint8_t> LargeSegments(const cv::Mat& segment_image, double max_fraction) {

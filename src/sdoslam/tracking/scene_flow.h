@@ -4,6 +4,8 @@
 #include <opencv2/core.hpp>
 #include <vector>
 
+#include "sdoslam/tracking/static_motion.h"
+
 namespace sdoslam {
 
 // The consistency check of the paper (§III-E): the 3-D motion of every landmark between an
@@ -57,6 +59,9 @@ struct SceneFlowOptions {
   // frame's check, started from a rough pose that a large mover dragged along, would otherwise
   // take most of the static scene out at once.
   double max_segment_area = 0.2;
+  // Before classifying, the rough pose is replaced by the motion that explains the largest
+  // share of the image (static_motion.h), when that explains clearly more.
+  StaticMotionOptions static_motion;
   void Check() const;
 
   // Calls visit(key, member) for every setting: one list of config keys for reading and writing.
@@ -80,6 +85,14 @@ struct SceneFlowOptions {
     visit("cull_after", o.cull_after);
     visit("depth_window_radius", o.depth_window_radius);
     visit("max_segment_area", o.max_segment_area);
+    visit("static_motion", o.static_motion.enabled);
+    visit("static_motion_grid_columns", o.static_motion.grid_columns);
+    visit("static_motion_grid_rows", o.static_motion.grid_rows);
+    visit("static_motion_hypotheses", o.static_motion.hypotheses);
+    visit("static_motion_inlier_px", o.static_motion.inlier_px);
+    visit("static_motion_min_gain", o.static_motion.min_gain);
+    visit("static_motion_min_correspondences", o.static_motion.min_correspondences);
+    visit("static_motion_seed", o.static_motion.seed);
   }
 };
 

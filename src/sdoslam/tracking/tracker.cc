@@ -3,11 +3,13 @@
 #include <algorithm>
 #include <cmath>
 #include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
 #include <set>
 
 #include "sdoslam/core/error.h"
 #include "sdoslam/optim/optimizer.h"
 #include "sdoslam/tracking/matcher.h"
+#include "sdoslam/tracking/static_motion.h"
 
 namespace sdoslam {
 
@@ -496,6 +498,100 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
       SegmentsAt(input.segments, cv::Size(camera.width(), camera.height()), candidate_points);
   result->check_measured = static_cast<int>(std::count(measured.begin(), measured.end(), 1));
 
+  // Start from the static world's motion, not the majority's (static_motion.h): a uniform grid
+  // of samples, tracked back into the past frame like the features.
+  std::vector<uint8_t> off_static_motion(n, 0);
+  if (o.static_motion.enabled) {
+    const StaticMotionOptions& so = o.static_motion;
+    std::vector<cv::Point2f> samples, sample_guesses;
+    // One sample per grid cell: its best corner (Shi–Tomasi), where it has one and depth there;
+    // flat cells are left out, Lucas–Kanade would only slide on them.
+    cv::Mat corner_strength;
+    cv::cornerMinEigenVal(input.gray, corner_strength, 5, 3);
+    for (int gy = 0; gy < so.grid_rows; ++gy) {
+      for (int gx = 0; gx < so.grid_columns; ++gx) {
+        const int x0 = gx * camera.width() / so.grid_columns,
+                  x1 = (gx + 1) * camera.width() / so.grid_columns;
+        const int y0 = gy * camera.height() / so.grid_rows,
+                  y1 = (gy + 1) * camera.height() / so.grid_rows;
+        double strongest = 0;
+        cv::Point at;
+        cv::minMaxLoc(corner_strength(cv::Rect(x0, y0, x1 - x0, y1 - y0)), nullptr, &strongest,
+                      nullptr, &at);
+        if (strongest < so.min_corner_strength) continue;
+        const cv::Point2f p(static_cast<float>(x0 + at.x), static_cast<float>(y0 + at.y));
+        if (input.depth.at<float>(y0 + at.y, x0 + at.x) > 0) samples.push_back(p);
+      }
+    }
+    const std::vector<cv::Point2f> samples_undistorted = camera.UndistortPoints(samples);
+    for (size_t s = 0; s < samples.size(); ++s) {
+      {
+        const cv::Point2f& p = samples[s];
+        const float z = input.depth.at<float>(static_cast<int>(p.y), static_cast<int>(p.x));
+        const Eigen::Vector3d in_past =
+            T_past_camera *
+            camera.Unproject({samples_undistorted[s].x, samples_undistorted[s].y}, z);
+        cv::Point2f guess = p;
+        if (in_past.z() > 0) {
+          const Eigen::Vector2d q = camera.Distort(camera.Project(in_past));
+          if (q.x() >= 0 && q.y() >= 0 && q.x() < camera.width() && q.y() < camera.height())
+            guess = cv::Point2f(static_cast<float>(q.x()), static_cast<float>(q.y()));
+        }
+        sample_guesses.push_back(guess);
+      }
+    }
+    std::vector<cv::Point2f> sample_past;
+    std::vector<uint8_t> sample_found;
+    TrackPointsBack(o, input.gray, past->gray, samples, &sample_past, &sample_found,
+                    &sample_guesses);
+    const std::vector<cv::Point2f> sample_past_undistorted = camera.UndistortPoints(sample_past);
+    std::vector<MotionCorrespondence> correspondences;
+    for (size_t s = 0; s < samples.size(); ++s) {
+      if (!sample_found[s]) continue;
+      const int u = static_cast<int>(std::lround(sample_past[s].x));
+      const int v = static_cast<int>(std::lround(sample_past[s].y));
+      if (u < 0 || v < 0 || u >= past->depth.cols || v >= past->depth.rows) continue;
+      const float past_depth = past->depth.at<float>(v, u);
+      if (!(past_depth > 0)) continue;
+      const Eigen::Vector2d pixel(samples_undistorted[s].x, samples_undistorted[s].y);
+      const float z =
+          input.depth.at<float>(static_cast<int>(samples[s].y), static_cast<int>(samples[s].x));
+      correspondences.push_back({T_world_past * camera.Unproject({sample_past_undistorted[s].x,
+                                                                  sample_past_undistorted[s].y},
+                                                                 past_depth),
+                                 camera.Unproject(pixel, z), pixel});
+    }
+    const StaticMotionResult widest =
+        FindStaticMotion(so, frame.geometry->intrinsics, correspondences, frame.T_camera_world);
+    result->check_rough_coverage = widest.rough_inliers;
+    result->check_coverage = widest.inliers;
+    if (widest.replaced) {
+      frame.T_camera_world = widest.T_camera_world;
+      result->check_replaced = true;
+      // Features the static world's motion does not explain move, whatever the 3-D thresholds
+      // say: near the camera those allow centimetres, as much as a carried box moves.
+      const PinholeIntrinsics& k = frame.geometry->intrinsics;
+      const double limit = 1.5 * so.inlier_px;
+      for (size_t k_slot = 0; k_slot < n; ++k_slot) {
+        if (!measured[k_slot]) continue;
+        const Ends& e = ends[k_slot];
+        const size_t i = static_cast<size_t>(candidates[k_slot]);
+        bool explained = false;
+        for (float dp : e.past_depths) {
+          const Eigen::Vector3d p = frame.T_camera_world * (e.past_origin + dp * e.past_direction);
+          if (p.z() <= 1e-6) continue;
+          const Eigen::Vector2d uv(k.fx * p.x() / p.z() + k.cx, k.fy * p.y() / p.z() + k.cy);
+          if ((uv - Eigen::Vector2d(frame.undistorted[i].x, frame.undistorted[i].y)).norm() <=
+              limit) {
+            explained = true;
+            break;
+          }
+        }
+        off_static_motion[k_slot] = !explained;
+      }
+    }
+  }
+
   // Classify at the rough pose, re-estimate the pose without the dynamic features, and repeat
   // until the classification stops changing (a fixed point).
   const std::vector<MapPoint*> matched = frame.map_points;
@@ -525,7 +621,7 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
         }
         if (!all_exceed) break;
       }
-      exceeds[k] = all_exceed;
+      exceeds[k] = all_exceed || off_static_motion[k];
     }
     std::vector<uint8_t> segments_now;
     std::vector<uint8_t> next = ClassifyBySceneFlow(

@@ -67,6 +67,11 @@ struct TrackingResult {
   int check_measured = 0;
   int check_dynamic = 0;
   int culled_points = 0;
+  // Static motion (static_motion.h): grid samples the rough pose explains, samples the chosen
+  // pose explains, and whether the widest motion replaced the rough pose.
+  int check_rough_coverage = 0;
+  int check_coverage = 0;
+  bool check_replaced = false;
   // Segments (ids of ConsistencyInput::segments) the check turned dynamic as a whole.
   std::vector<int> check_segments;
 };

@@ -1,0 +1,131 @@
+#include "sdoslam/tracking/static_motion.h"
+
+#include <Eigen/Geometry>
+#include <array>
+#include <random>
+
+#include "sdoslam/core/error.h"
+#include "sdoslam/optim/optimizer.h"
+
+namespace sdoslam {
+
+void StaticMotionOptions::Check() const {
+  if (grid_columns < 2 || grid_rows < 2)
+    throw Error("consistency.static_motion_grid_columns and _grid_rows must be >= 2");
+  if (hypotheses < 1) throw Error("consistency.static_motion_hypotheses must be >= 1");
+  if (!(inlier_px > 0)) throw Error("consistency.static_motion_inlier_px must be positive");
+  if (!(min_gain >= 0)) throw Error("consistency.static_motion_min_gain must be >= 0");
+  if (min_correspondences < 3)
+    throw Error("consistency.static_motion_min_correspondences must be >= 3");
+}
+
+namespace {
+
+bool IsInlier(const PinholeIntrinsics& k, const MotionCorrespondence& m, const Eigen::Isometry3d& T,
+              double limit2) {
+  const Eigen::Vector3d p = T * m.past_world;
+  if (p.z() <= 1e-6) return false;
+  const Eigen::Vector2d uv(k.fx * p.x() / p.z() + k.cx, k.fy * p.y() / p.z() + k.cy);
+  return (uv - m.current_pixel).squaredNorm() <= limit2;
+}
+
+// The rigid motion of all inliers of T (3-D–3-D, closed form), or T when too few.
+Eigen::Isometry3d FitToInliers(const StaticMotionOptions& options, const PinholeIntrinsics& k,
+                               const std::vector<MotionCorrespondence>& matches,
+                               const Eigen::Isometry3d& T) {
+  const double limit2 = options.inlier_px * options.inlier_px;
+  std::vector<size_t> inliers;
+  for (size_t j = 0; j < matches.size(); ++j) {
+    if (IsInlier(k, matches[j], T, limit2)) inliers.push_back(j);
+  }
+  if (inliers.size() < 4) return T;
+  Eigen::Matrix3Xd from(3, static_cast<Eigen::Index>(inliers.size())), to(3, from.cols());
+  for (size_t c = 0; c < inliers.size(); ++c) {
+    from.col(static_cast<Eigen::Index>(c)) = matches[inliers[c]].past_world;
+    to.col(static_cast<Eigen::Index>(c)) = matches[inliers[c]].current_camera;
+  }
+  return Eigen::Isometry3d(Eigen::umeyama(from, to, false));
+}
+
+}  // namespace
+
+int CountMotionInliers(const StaticMotionOptions& options, const PinholeIntrinsics& k,
+                       const std::vector<MotionCorrespondence>& matches,
+                       const Eigen::Isometry3d& T) {
+  const double limit2 = options.inlier_px * options.inlier_px;
+  int inliers = 0;
+  for (const MotionCorrespondence& m : matches) inliers += IsInlier(k, m, T, limit2);
+  return inliers;
+}
+
+StaticMotionResult FindStaticMotion(const StaticMotionOptions& options, const PinholeIntrinsics& k,
+                                    const std::vector<MotionCorrespondence>& matches,
+                                    const Eigen::Isometry3d& rough) {
+  StaticMotionResult result;
+  result.T_camera_world = rough;
+  result.rough_inliers = result.inliers = CountMotionInliers(options, k, matches, rough);
+  if (!options.enabled || static_cast<int>(matches.size()) < options.min_correspondences)
+    return result;
+
+  std::mt19937 random(options.seed);
+  std::uniform_int_distribution<size_t> pick(0, matches.size() - 1);
+  Eigen::Isometry3d best = rough;
+  int best_inliers = -1;
+  for (int h = 0; h < options.hypotheses; ++h) {
+    const std::array<size_t, 3> s{pick(random), pick(random), pick(random)};
+    if (s[0] == s[1] || s[0] == s[2] || s[1] == s[2]) continue;
+    Eigen::Matrix3d from, to;
+    for (int c = 0; c < 3; ++c) {
+      from.col(c) = matches[s[static_cast<size_t>(c)]].past_world;
+      to.col(c) = matches[s[static_cast<size_t>(c)]].current_camera;
+    }
+    // A nearly collinear sample fixes no rotation about its line.
+    const Eigen::Vector3d a = from.col(1) - from.col(0), b = from.col(2) - from.col(0);
+    if (a.cross(b).norm() < 0.05 * a.norm() * b.norm()) continue;
+    Eigen::Isometry3d T(Eigen::umeyama(from, to, false));
+    int inliers = CountMotionInliers(options, k, matches, T);
+    if (inliers <= best_inliers) continue;
+    // Local optimisation (LO-RANSAC): three samples' depths are noisy, so a good draw explains
+    // only part of its motion's samples; the fit to all its inliers explains them all.
+    for (int round = 0; round < 2; ++round) {
+      const Eigen::Isometry3d refit = FitToInliers(options, k, matches, T);
+      const int refit_inliers = CountMotionInliers(options, k, matches, refit);
+      if (refit_inliers <= inliers) break;
+      T = refit;
+      inliers = refit_inliers;
+    }
+    best_inliers = inliers;
+    best = T;
+  }
+  if (best_inliers < 0) return result;
+  // Refine on the inliers by their reprojection error (the depth of a sample is noisier than
+  // its position), twice: the inlier set grows as the pose settles.
+  const double limit2 = options.inlier_px * options.inlier_px;
+  for (int round = 0; round < 2; ++round) {
+    std::vector<Eigen::Vector3d> points;
+    std::vector<PointObservation> observations;
+    for (const MotionCorrespondence& m : matches) {
+      if (!IsInlier(k, m, best, limit2)) continue;
+      points.push_back(m.past_world);
+      PointObservation o;
+      o.pixel = m.current_pixel;
+      observations.push_back(o);
+    }
+    if (points.size() < 6) break;
+    PoseOptimizationOptions refine;
+    refine.rounds = 2;
+    const Eigen::Isometry3d refined =
+        OptimizePose(k, best, points, observations, refine).T_camera_world;
+    const int inliers = CountMotionInliers(options, k, matches, refined);
+    if (inliers < best_inliers) break;
+    best = refined;
+    best_inliers = inliers;
+  }
+  if (best_inliers <= (1.0 + options.min_gain) * result.rough_inliers) return result;
+  result.replaced = true;
+  result.T_camera_world = best;
+  result.inliers = best_inliers;
+  return result;
+}
+
+}  // namespace sdoslam
