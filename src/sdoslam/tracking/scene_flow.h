@@ -88,6 +88,7 @@ struct SceneFlowOptions {
     visit("static_motion", o.static_motion.enabled);
     visit("static_motion_grid_columns", o.static_motion.grid_columns);
     visit("static_motion_grid_rows", o.static_motion.grid_rows);
+    visit("static_motion_min_corner_strength", o.static_motion.min_corner_strength);
     visit("static_motion_hypotheses", o.static_motion.hypotheses);
     visit("static_motion_inlier_px", o.static_motion.inlier_px);
     visit("static_motion_min_gain", o.static_motion.min_gain);

@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <array>
+#include <opencv2/imgproc.hpp>
 #include <random>
 
 #include "sdoslam/core/error.h"
@@ -12,6 +13,8 @@ namespace sdoslam {
 void StaticMotionOptions::Check() const {
   if (grid_columns < 2 || grid_rows < 2)
     throw Error("consistency.static_motion_grid_columns and _grid_rows must be >= 2");
+  if (!(min_corner_strength >= 0))
+    throw Error("consistency.static_motion_min_corner_strength must be >= 0");
   if (hypotheses < 1) throw Error("consistency.static_motion_hypotheses must be >= 1");
   if (!(inlier_px > 0)) throw Error("consistency.static_motion_inlier_px must be positive");
   if (!(min_gain >= 0)) throw Error("consistency.static_motion_min_gain must be >= 0");
@@ -49,6 +52,30 @@ Eigen::Isometry3d FitToInliers(const StaticMotionOptions& options, const Pinhole
 
 }  // namespace
 
+std::vector<cv::Point2f> GridCorners(const StaticMotionOptions& options, const cv::Mat& gray,
+                                     const cv::Mat& depth) {
+  CV_Assert(gray.type() == CV_8UC1 && depth.type() == CV_32FC1 && gray.size() == depth.size());
+  cv::Mat strength;
+  cv::cornerMinEigenVal(gray, strength, 5, 3);
+  std::vector<cv::Point2f> samples;
+  for (int gy = 0; gy < options.grid_rows; ++gy) {
+    for (int gx = 0; gx < options.grid_columns; ++gx) {
+      const int x0 = gx * gray.cols / options.grid_columns;
+      const int x1 = (gx + 1) * gray.cols / options.grid_columns;
+      const int y0 = gy * gray.rows / options.grid_rows;
+      const int y1 = (gy + 1) * gray.rows / options.grid_rows;
+      double strongest = 0;
+      cv::Point at;
+      cv::minMaxLoc(strength(cv::Rect(x0, y0, x1 - x0, y1 - y0)), nullptr, &strongest, nullptr,
+                    &at);
+      if (strongest < options.min_corner_strength) continue;
+      if (depth.at<float>(y0 + at.y, x0 + at.x) > 0)
+        samples.emplace_back(static_cast<float>(x0 + at.x), static_cast<float>(y0 + at.y));
+    }
+  }
+  return samples;
+}
+
 int CountMotionInliers(const StaticMotionOptions& options, const PinholeIntrinsics& k,
                        const std::vector<MotionCorrespondence>& matches,
                        const Eigen::Isometry3d& T) {
@@ -65,6 +92,10 @@ StaticMotionResult FindStaticMotion(const StaticMotionOptions& options, const Pi
   result.T_camera_world = rough;
   result.rough_inliers = result.inliers = CountMotionInliers(options, k, matches, rough);
   if (!options.enabled || static_cast<int>(matches.size()) < options.min_correspondences)
+    return result;
+  // No motion can explain more than all samples: where the rough pose already explains so many
+  // that the gain is out of reach, it stays (most frames of a static scene end here).
+  if ((1.0 + options.min_gain) * result.rough_inliers >= static_cast<double>(matches.size()))
     return result;
 
   std::mt19937 random(options.seed);
@@ -97,7 +128,7 @@ StaticMotionResult FindStaticMotion(const StaticMotionOptions& options, const Pi
     best_inliers = inliers;
     best = T;
   }
-  if (best_inliers < 0) return result;
+  if (best_inliers <= (1.0 + options.min_gain) * result.rough_inliers) return result;
   // Refine on the inliers by their reprojection error (the depth of a sample is noisier than
   // its position), twice: the inlier set grows as the pose settles.
   const double limit2 = options.inlier_px * options.inlier_px;

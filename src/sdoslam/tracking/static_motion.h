@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <opencv2/core.hpp>
 #include <vector>
 
 #include "sdoslam/optim/residuals.h"
@@ -51,6 +52,12 @@ struct StaticMotionResult {
   int inliers = 0;        // correspondences the chosen pose explains
   int rough_inliers = 0;  // ... the rough pose explains
 };
+
+// The samples of an image: in each cell of the options' grid, its strongest corner (the minimal
+// eigenvalue of the gradient covariance, Shi–Tomasi), where that reaches min_corner_strength and
+// `depth` (CV_32F, 0 = none) has a value. Flat cells give none: Lucas–Kanade slides on them.
+std::vector<cv::Point2f> GridCorners(const StaticMotionOptions& options, const cv::Mat& gray,
+                                     const cv::Mat& depth);
 
 // Correspondences that `T_camera_world` reprojects within options.inlier_px.
 int CountMotionInliers(const StaticMotionOptions& options, const PinholeIntrinsics& intrinsics,

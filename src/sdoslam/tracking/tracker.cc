@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <opencv2/calib3d.hpp>
-#include <opencv2/imgproc.hpp>
 #include <set>
 
 #include "sdoslam/core/error.h"
@@ -445,21 +444,26 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
   std::vector<cv::Point2f> tracked_points, guesses;
   std::vector<size_t> tracked_slot;
   const Eigen::Isometry3d T_past_camera = past->T_camera_world * frame.T_camera_world.inverse();
+  // Where a static point seen at `pixel` (undistorted: `undistorted`) at `depth` was in the past
+  // frame at the rough pose; `pixel` itself when that falls outside the image.
+  auto where_static_was = [&](const cv::Point2f& pixel, const cv::Point2f& undistorted,
+                              double depth) {
+    const Eigen::Vector3d in_past =
+        T_past_camera * camera.Unproject({undistorted.x, undistorted.y}, depth);
+    if (in_past.z() > 0) {
+      const Eigen::Vector2d p = camera.Distort(camera.Project(in_past));
+      if (p.x() >= 0 && p.y() >= 0 && p.x() < camera.width() && p.y() < camera.height())
+        return cv::Point2f(static_cast<float>(p.x()), static_cast<float>(p.y()));
+    }
+    return pixel;
+  };
   for (size_t i = 0; i < frame.size(); ++i) {
     if (!frame.IsStatic(static_cast<int>(i))) continue;
     if (frame.HasDepth(static_cast<int>(i))) {
       tracked_slot.push_back(candidates.size());
       tracked_points.push_back(frame.keypoints[i].pt);
-      const Eigen::Vector3d in_past =
-          T_past_camera *
-          camera.Unproject({frame.undistorted[i].x, frame.undistorted[i].y}, frame.depth[i]);
-      cv::Point2f guess = frame.keypoints[i].pt;
-      if (in_past.z() > 0) {
-        const Eigen::Vector2d p = camera.Distort(camera.Project(in_past));
-        if (p.x() >= 0 && p.y() >= 0 && p.x() < camera.width() && p.y() < camera.height())
-          guess = cv::Point2f(static_cast<float>(p.x()), static_cast<float>(p.y()));
-      }
-      guesses.push_back(guess);
+      guesses.push_back(
+          where_static_was(frame.keypoints[i].pt, frame.undistorted[i], frame.depth[i]));
     }
     candidates.push_back(static_cast<int>(i));
   }
@@ -498,47 +502,19 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
       SegmentsAt(input.segments, cv::Size(camera.width(), camera.height()), candidate_points);
   result->check_measured = static_cast<int>(std::count(measured.begin(), measured.end(), 1));
 
-  // Start from the static world's motion, not the majority's (static_motion.h): a uniform grid
-  // of samples, tracked back into the past frame like the features.
+  // Start from the static world's motion, not the majority's (static_motion.h): a grid of
+  // corner samples, one per textured cell, tracked back into the past frame like the features.
   std::vector<uint8_t> off_static_motion(n, 0);
   if (o.static_motion.enabled) {
     const StaticMotionOptions& so = o.static_motion;
-    std::vector<cv::Point2f> samples, sample_guesses;
-    // One sample per grid cell: its best corner (Shi–Tomasi), where it has one and depth there;
-    // flat cells are left out, Lucas–Kanade would only slide on them.
-    cv::Mat corner_strength;
-    cv::cornerMinEigenVal(input.gray, corner_strength, 5, 3);
-    for (int gy = 0; gy < so.grid_rows; ++gy) {
-      for (int gx = 0; gx < so.grid_columns; ++gx) {
-        const int x0 = gx * camera.width() / so.grid_columns,
-                  x1 = (gx + 1) * camera.width() / so.grid_columns;
-        const int y0 = gy * camera.height() / so.grid_rows,
-                  y1 = (gy + 1) * camera.height() / so.grid_rows;
-        double strongest = 0;
-        cv::Point at;
-        cv::minMaxLoc(corner_strength(cv::Rect(x0, y0, x1 - x0, y1 - y0)), nullptr, &strongest,
-                      nullptr, &at);
-        if (strongest < so.min_corner_strength) continue;
-        const cv::Point2f p(static_cast<float>(x0 + at.x), static_cast<float>(y0 + at.y));
-        if (input.depth.at<float>(y0 + at.y, x0 + at.x) > 0) samples.push_back(p);
-      }
-    }
+    const std::vector<cv::Point2f> samples = GridCorners(so, input.gray, input.depth);
     const std::vector<cv::Point2f> samples_undistorted = camera.UndistortPoints(samples);
+    std::vector<cv::Point2f> sample_guesses;
     for (size_t s = 0; s < samples.size(); ++s) {
-      {
-        const cv::Point2f& p = samples[s];
-        const float z = input.depth.at<float>(static_cast<int>(p.y), static_cast<int>(p.x));
-        const Eigen::Vector3d in_past =
-            T_past_camera *
-            camera.Unproject({samples_undistorted[s].x, samples_undistorted[s].y}, z);
-        cv::Point2f guess = p;
-        if (in_past.z() > 0) {
-          const Eigen::Vector2d q = camera.Distort(camera.Project(in_past));
-          if (q.x() >= 0 && q.y() >= 0 && q.x() < camera.width() && q.y() < camera.height())
-            guess = cv::Point2f(static_cast<float>(q.x()), static_cast<float>(q.y()));
-        }
-        sample_guesses.push_back(guess);
-      }
+      const cv::Point2f& p = samples[s];
+      sample_guesses.push_back(
+          where_static_was(p, samples_undistorted[s],
+                           input.depth.at<float>(static_cast<int>(p.y), static_cast<int>(p.x))));
     }
     std::vector<cv::Point2f> sample_past;
     std::vector<uint8_t> sample_found;
