@@ -36,14 +36,7 @@ void Convert(const ConvertArgs& args) {
     camera = LoadCameraConfig(own);
   }
   const RgbdDataset dataset(args.dataset, camera, options);
-  if (std::filesystem::exists(args.out) && !std::filesystem::is_empty(args.out)) {
-    if (!args.overwrite) throw Error(args.out + " exists; pass --overwrite to replace it");
-  }
-  const std::filesystem::path staging_root = args.out + ".convert";
-  std::filesystem::remove_all(staging_root);
-  WriteTumCopy(dataset, staging_root);
-  std::filesystem::remove_all(args.out);
-  std::filesystem::rename(staging_root, args.out);
+  WriteTumCopy(dataset, args.out, args.overwrite);
   std::cout << "wrote " << dataset.size() << " frames of " << args.dataset << " ("
             << ToString(dataset.layout()) << ") to " << args.out << " (TUM layout"
             << (dataset.ground_truth() ? ", groundtruth.txt" : "")

@@ -117,7 +117,7 @@ RunSummary RunOnDataset(const RunOptions& options) {
       "index,timestamp,state,features,features_with_depth,dynamic_features,matches,inliers,"
       "keyframe,check_iterations,check_converged,check_reverted,check_measured,check_dynamic,"
       "culled_points,front_end_ms,segment_ms,detect_ms,flow_ms,classify_ms,features_ms,"
-      "tracking_ms,mapping_ms,keyframes,map_points,check_rough_coverage,check_coverage,"
+      "tracking_ms,mapping_ms,keyframes,map_points,check_rough_samples,check_static_samples,"
       "check_replaced\n";
   std::string feature_log = "index,x,y,label\n";
   std::vector<double> frame_ms, front_end_ms, mapping_ms, total_ms;
@@ -177,7 +177,7 @@ RunSummary RunOnDataset(const RunOptions& options) {
         r.check_reverted ? 1 : 0, r.check_measured, r.check_dynamic, r.culled_points,
         front_timing.total(), front_timing.segment_ms, front_timing.detect_ms, front_timing.flow_ms,
         front_timing.classify_ms, timing.features_ms, timing.tracking_ms, timing.mapping_ms,
-        r.keyframes_alive, r.map_points_alive, r.check_rough_coverage, r.check_coverage,
+        r.keyframes_alive, r.map_points_alive, r.check_rough_samples, r.check_static_samples,
         r.check_replaced ? 1 : 0);
     if (!labels.empty() && mask_evaluator) {
       mask_evaluator->AddFrame(rgb_paths[i], labels, r.feature_points, r.feature_labels);

@@ -110,15 +110,16 @@ void RunSynth(const SynthArgs& args) {
   options.depth_factor = args.depth_factor;
   synth::SequenceSummary s;
   if (args.layout == "omd") {
-    // Rendered in the TUM layout beside `out`, then rewritten as an OMD segment.
-    if (std::filesystem::exists(args.out) && !std::filesystem::is_empty(args.out)) {
-      if (!args.overwrite) throw Error(args.out + " exists; pass --overwrite to replace it");
-      std::filesystem::remove_all(args.out);
+    // Rendered in the TUM layout beside `out`, then rewritten as an OMD segment; an earlier
+    // `out` is replaced only once the segment is complete.
+    if (!args.overwrite && std::filesystem::exists(args.out) &&
+        !std::filesystem::is_empty(args.out)) {
+      throw Error(args.out + " exists; pass --overwrite to replace it");
     }
     const std::filesystem::path tum = args.out + ".tum-staging";
     s = synth::WriteSequence(options, tum, /*overwrite=*/true);
     try {
-      WriteOmdFromTum(tum, args.out, OmdWriteOptions::ExampleApparatus());
+      WriteOmdFromTum(tum, args.out, OmdWriteOptions::ExampleApparatus(), args.overwrite);
     } catch (...) {
       std::filesystem::remove_all(tum);
       throw;

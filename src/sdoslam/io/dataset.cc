@@ -77,10 +77,9 @@ DatasetLayout DetectLayout(const std::filesystem::path& folder) {
   }
   if (omd) return DatasetLayout::kOmd;
   if (rgb && depth) {
-    const std::string name =
-        std::filesystem::absolute(folder).lexically_normal().filename().string();
-    const std::string parent_name =
-        std::filesystem::absolute(folder).lexically_normal().parent_path().filename().string();
+    const std::filesystem::path normal = std::filesystem::absolute(folder).lexically_normal();
+    const std::string name = normal.filename().string();
+    const std::string parent_name = normal.parent_path().filename().string();
     const bool bonn = name.rfind("rgbd_bonn_", 0) == 0 ||
                       (name.empty() && parent_name.rfind("rgbd_bonn_", 0) == 0);
     return bonn ? DatasetLayout::kBonn : DatasetLayout::kTum;
@@ -172,9 +171,9 @@ RgbdFrame LoadRgbdFrame(const RgbdFrameEntry& entry, size_t index, const CameraO
   return frame;
 }
 
-void WriteTumCopy(const RgbdDataset& dataset, const std::filesystem::path& out) {
-  if (std::filesystem::exists(out) && !std::filesystem::is_empty(out))
-    throw Error(out.string() + " exists and is not empty");
+void WriteTumCopy(const RgbdDataset& dataset, const std::filesystem::path& out, bool overwrite) {
+  if (!overwrite && std::filesystem::exists(out) && !std::filesystem::is_empty(out))
+    throw Error(out.string() + " exists; pass --overwrite to replace it");
   const std::filesystem::path staging = out.string() + ".staging";
   std::filesystem::remove_all(staging);
   std::filesystem::create_directories(staging / "rgb");

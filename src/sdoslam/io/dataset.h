@@ -77,11 +77,13 @@ class RgbdDataset {
   std::map<std::string, Trajectory> bodies_;
 };
 
-// Writes `dataset` in the TUM layout at `out` (which must not exist or be empty): images copied
+// Writes `dataset` in the TUM layout at `out`: images copied
 // as they are (rgb/, depth/ named by timestamp), rgb.txt, depth.txt, camera.yaml (the resolved
 // camera, depth factor included), groundtruth.txt and bodies/<name>.txt where it has them. For
-// evo, the TUM tools and anything else that reads TUM. Staged, then moved into place.
-void WriteTumCopy(const RgbdDataset& dataset, const std::filesystem::path& out);
+// evo, the TUM tools and anything else that reads TUM. Staged, then moved into place: an existing
+// non-empty `out` is an error unless `overwrite`, and is replaced only by a complete copy.
+void WriteTumCopy(const RgbdDataset& dataset, const std::filesystem::path& out,
+                  bool overwrite = false);
 
 // Decodes one frame's images. Throws Error naming the file when an image does not decode, has
 // the wrong size for the camera, or a depth image is not 16-bit single-channel.

@@ -19,11 +19,14 @@ namespace {
 
 YAML::Node LoadYaml(const std::filesystem::path& path) {
   if (!std::filesystem::exists(path)) throw Error(path.string() + " does not exist");
+  YAML::Node root;
   try {
-    return YAML::LoadFile(path.string());
+    root = YAML::LoadFile(path.string());
   } catch (const YAML::Exception& e) {
     throw Error(path.string() + ": " + e.what());
   }
+  if (!root.IsMap()) throw Error(path.string() + ": expected a YAML map of named entries");
+  return root;
 }
 
 std::vector<double> Numbers(const YAML::Node& node, const std::filesystem::path& file,
@@ -131,14 +134,13 @@ std::filesystem::path Calibration(const std::filesystem::path& folder, const std
 
 std::vector<KalibrCamera> ReadKalibrCameras(const std::filesystem::path& path) {
   const YAML::Node root = LoadYaml(path);
-  if (!root.IsMap() || root.size() == 0)
-    throw Error(path.string() + ": expected cam0, cam1, ... entries");
   std::vector<KalibrCamera> cameras;
   Eigen::Isometry3d T_previous_cam0 = Eigen::Isometry3d::Identity();
   for (size_t n = 0;; ++n) {
     const std::string name = "cam" + std::to_string(n);
     const YAML::Node node = root[name];
     if (!node) break;
+    if (!node.IsMap()) throw Error(path.string() + ": " + name + " must be a map of its settings");
     KalibrCamera camera;
     camera.name = name;
     if (node["rostopic"]) camera.rostopic = node["rostopic"].as<std::string>("");
@@ -362,13 +364,13 @@ OmdWriteOptions OmdWriteOptions::ExampleApparatus() {
 }
 
 void WriteOmdFromTum(const std::filesystem::path& tum, const std::filesystem::path& out,
-                     const OmdWriteOptions& options) {
+                     const OmdWriteOptions& options, bool overwrite) {
   if (!(options.vicon_rate_hz > 0)) throw Error("vicon_rate_hz must be positive");
   const CameraOptions camera = LoadCameraConfig(tum / "camera.yaml");
   const TumDataset dataset(tum, camera);
   const Trajectory ground_truth = ReadTumTrajectory(tum / "groundtruth.txt");
-  if (std::filesystem::exists(out) && !std::filesystem::is_empty(out))
-    throw Error(out.string() + " exists and is not empty");
+  if (!overwrite && std::filesystem::exists(out) && !std::filesystem::is_empty(out))
+    throw Error(out.string() + " exists; pass --overwrite to replace it");
   const std::filesystem::path staging = out.string() + ".staging";
   std::filesystem::remove_all(staging);
   std::filesystem::create_directories(staging / "rgbd");

@@ -77,7 +77,9 @@ bool IsOmdFolder(const std::filesystem::path& folder);
 // (depth re-quantised to millimetres unless it already is), rgbd.csv, the camera chain
 // (`T_apparatus_left` and a kalibr.yaml whose colour camera is cam2, behind a stereo pair), and
 // vicon.csv with the apparatus and every object sampled at `vicon_rate_hz` between the frames.
-// The given extrinsics are what a reader must undo to recover the camera's trajectory.
+// The given extrinsics are what a reader must undo to recover the camera's trajectory. Written
+// to a staging folder and moved into place at the end: an existing non-empty `out` is an error
+// unless `overwrite`, and is replaced only once the new segment is complete.
 struct OmdWriteOptions {
   // A plausible apparatus: the left camera 5 cm below and 10 cm ahead of the Vicon body's
   // origin, turned from its z-up frame to the camera's z-forward one; an 11 cm stereo pair; the
@@ -89,6 +91,6 @@ struct OmdWriteOptions {
   Eigen::Isometry3d T_cam2_cam1 = Eigen::Isometry3d::Identity();  // colour from right
 };
 void WriteOmdFromTum(const std::filesystem::path& tum, const std::filesystem::path& out,
-                     const OmdWriteOptions& options);
+                     const OmdWriteOptions& options, bool overwrite = false);
 
 }  // namespace sdoslam

@@ -93,6 +93,17 @@ TEST(OmdCalibration, ComposesTheKalibrChainIntoEachCameraInCam0) {
   EXPECT_EQ(cameras[2].rostopic, "/camera/color/image_raw");
 }
 
+TEST(OmdCalibration, ACameraEntryThatIsNotAMapIsNamed) {
+  testing::TempDir dir;
+  testing::WriteText(dir / "kalibr.yaml", "cam0: 5\n");
+  std::string message = testing::MessageOf([&] { ReadKalibrCameras(dir / "kalibr.yaml"); });
+  EXPECT_NE(message.find("kalibr.yaml: cam0 must be a map of its settings"), std::string::npos)
+      << message;
+  testing::WriteText(dir / "vicon.yaml", "- 1\n- 2\n");
+  message = testing::MessageOf([&] { ReadViconCalibration(dir / "vicon.yaml"); });
+  EXPECT_NE(message.find("vicon.yaml: expected a YAML map"), std::string::npos) << message;
+}
+
 TEST(OmdCalibration, RefusesAChainLinkThatIsNotRigid) {
   testing::TempDir dir;
   std::string bad = kKalibr;
@@ -264,6 +275,13 @@ TEST(OmdSequence, BadFoldersAreClearErrors) {
   EXPECT_NE(message.find("no camera named 'cam7' (cameras: cam0 (/stereo/left/image_raw)"),
             std::string::npos)
       << message;
+  // An existing segment is kept unless replacing is asked for, and then replaced whole.
+  message = testing::MessageOf([&] { WriteOmdFromTum(dir / "tum", dir / "omd2", Extrinsics()); });
+  EXPECT_NE(message.find("omd2 exists; pass --overwrite"), std::string::npos) << message;
+  testing::WriteText(dir / "omd2" / "stale.txt", "from an earlier run");
+  WriteOmdFromTum(dir / "tum", dir / "omd2", Extrinsics(), /*overwrite=*/true);
+  EXPECT_FALSE(std::filesystem::exists(dir / "omd2" / "stale.txt"));
+  EXPECT_EQ(ReadOmdSequence(dir / "omd2").entries.size(), 3u);
   std::filesystem::remove(dir / "omd2" / "vicon.yaml");
   message = testing::MessageOf([&] { ReadOmdSequence(dir / "omd2"); });
   EXPECT_NE(message.find("needs vicon.yaml"), std::string::npos) << message;

@@ -539,8 +539,8 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
     }
     const StaticMotionResult widest =
         FindStaticMotion(so, frame.geometry->intrinsics, correspondences, frame.T_camera_world);
-    result->check_rough_coverage = widest.rough_inliers;
-    result->check_coverage = widest.inliers;
+    result->check_rough_samples = widest.rough_inliers;
+    result->check_static_samples = widest.inliers;
     if (widest.replaced) {
       frame.T_camera_world = widest.T_camera_world;
       result->check_replaced = true;

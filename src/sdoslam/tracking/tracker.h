@@ -69,8 +69,8 @@ struct TrackingResult {
   int culled_points = 0;
   // Static motion (static_motion.h): grid samples the rough pose explains, samples the chosen
   // pose explains, and whether the widest motion replaced the rough pose.
-  int check_rough_coverage = 0;
-  int check_coverage = 0;
+  int check_rough_samples = 0;
+  int check_static_samples = 0;
   bool check_replaced = false;
   // Segments (ids of ConsistencyInput::segments) the check turned dynamic as a whole.
   std::vector<int> check_segments;
