@@ -9,6 +9,8 @@ packages=(
   libeigen3-dev libceres-dev           # maths and all optimisation
   libyaml-cpp-dev libcli11-dev libspdlog-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev libtbb-dev
+  libssl-dev                           # SHA-256 of result files (manifest.json)
+  clang libclang-rt-dev                # libFuzzer targets (scripts/fuzz.sh)
 )
 
 missing=()

@@ -38,16 +38,17 @@ TEST(Cli, HelpListsSubcommands) {
 }
 
 TEST(Cli, CommandLineMistakesFailWithAMessage) {
+  // Usage errors: exit code 2 (the README's table).
   Result r = RunSdoslam("");
-  EXPECT_NE(r.exit_code, 0);
+  EXPECT_EQ(r.exit_code, 2);
   r = RunSdoslam("eval --est x.txt");
-  EXPECT_NE(r.exit_code, 0);
+  EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.output.find("--gt"), std::string::npos) << r.output;
   r = RunSdoslam("eval --gt a --est b --frobnicate");
-  EXPECT_NE(r.exit_code, 0);
+  EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.output.find("frobnicate"), std::string::npos) << r.output;
   r = RunSdoslam("eval --gt a --est b --align affine");
-  EXPECT_NE(r.exit_code, 0);
+  EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.output.find("affine"), std::string::npos) << r.output;
   r = RunSdoslam("--log-level loud demo --out /tmp/x");
   EXPECT_EQ(r.exit_code, 1);
@@ -274,6 +275,80 @@ TEST_F(CliRun, EmptySequenceAndNoDepthAtTheStartAreClearErrors) {
   EXPECT_NE(output.find("the first 30 frames have too little depth to start the map"),
             std::string::npos)
       << output;
+}
+
+// The README's exit-code table, row by row (130 and 143: signal_test; 3 is for bugs).
+TEST_F(CliRun, ExitCodesFollowTheReadmeTable) {
+  const std::string seq = (dir_ / "seq").string();
+  const std::string config = (dir_ / "seq" / "camera.yaml").string();
+  const std::string out = (dir_ / "out").string();
+  Result r = RunSdoslam("run --dataset " + seq + " --config " + config + " --out " + out +
+                        " --max-frames 3");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  r = RunSdoslam("run --dataset " + seq + " --config " + config + " --out " + out +
+                 " --frobnicate");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  r = RunSdoslam("run --config " + config + " --out " + out);  // no dataset anywhere
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--dataset"), std::string::npos) << r.output;
+  r = RunSdoslam("run --dataset " + (dir_ / "nowhere").string() + " --config " + config +
+                 " --out " + out);
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  // An unwritable --out is an I/O error, found before the first frame.
+  r = RunSdoslam("run --dataset " + seq + " --config " + config + " --out /proc/self");
+  EXPECT_EQ(r.exit_code, 4) << r.output;
+  EXPECT_NE(r.output.find("cannot write into the output folder /proc/self"), std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("frames:"), std::string::npos) << r.output;
+  // The failed runs left the earlier complete set as it was.
+  EXPECT_EQ(ReadTumTrajectory(dir_ / "out" / "CameraTrajectory.txt").size(), 3u);
+}
+
+// A run's config.yaml alone repeats the run: dataset, frame range and threading are in it.
+TEST_F(CliRun, ARunsConfigYamlRerunsItBitIdentically) {
+  const std::string first = (dir_ / "first").string(), second = (dir_ / "second").string();
+  Result r = RunSdoslam("run --dataset " + (dir_ / "seq").string() + " --config " +
+                        (dir_ / "seq" / "camera.yaml").string() +
+                        " --sequential --max-frames 20 --out " + first);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  r = RunSdoslam("run --config " + first + "/config.yaml --out " + second);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("20 frames: 20 tracked"), std::string::npos) << r.output;
+  EXPECT_EQ(testing::ReadText(dir_ / "first" / "CameraTrajectory.txt"),
+            testing::ReadText(dir_ / "second" / "CameraTrajectory.txt"));
+  EXPECT_EQ(testing::ReadText(dir_ / "first" / "config.yaml"),
+            testing::ReadText(dir_ / "second" / "config.yaml"));
+}
+
+TEST_F(CliRun, MaskScoresNeedACompleteSetWithFeatures) {
+  const std::string seq = (dir_ / "seq").string();
+  const std::string run = "run --dataset " + seq + " --config " +
+                          (dir_ / "seq" / "camera.yaml").string() +
+                          " --mode oracle --max-frames 5 --out " + (dir_ / "out").string();
+  ASSERT_EQ(RunSdoslam(run).exit_code, 0);
+  // No --save-masks: this once printed precision 1.000.
+  Result r = RunSdoslam("eval-masks --dataset " + seq + " --run " + (dir_ / "out").string());
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("run with --save-masks"), std::string::npos) << r.output;
+  ASSERT_EQ(RunSdoslam(run + " --save-masks").exit_code, 0);
+  r = RunSdoslam("eval-masks --dataset " + seq + " --run " + (dir_ / "out").string());
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  // A mask changed after the run (or left from another) is not scored.
+  const auto mask = std::filesystem::directory_iterator(dir_ / "out" / "masks")->path();
+  cv::imwrite(mask.string(), cv::Mat(cv::imread(mask.string()).size(), CV_8U, cv::Scalar(1)));
+  r = RunSdoslam("eval-masks --dataset " + seq + " --run " + (dir_ / "out").string());
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("differs from the result set"), std::string::npos) << r.output;
+}
+
+TEST_F(CliRun, AFrontEndOptionInAModeWithoutFrontEndIsAWarning) {
+  const Result r =
+      RunSdoslam("run --dataset " + (dir_ / "seq").string() + " --config " +
+                 (dir_ / "seq" / "camera.yaml").string() +
+                 " --detector-model some.onnx --max-frames 3 --out " + (dir_ / "out").string());
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("--detector-model has no effect in mode conventional"), std::string::npos)
+      << r.output;
 }
 
 }  // namespace

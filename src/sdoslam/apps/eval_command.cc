@@ -10,6 +10,7 @@
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
 #include "sdoslam/eval/report.h"
+#include "sdoslam/io/result_set.h"
 
 namespace sdoslam {
 namespace {
@@ -30,6 +31,12 @@ struct EvalArgs {
 };
 
 Trajectory ReadNonEmpty(const std::string& path) {
+  // A file of an sdoslam result set must match its manifest (not a half-replaced set).
+  if (const auto manifest = VerifyResultFile(path); manifest && manifest->status != "complete") {
+    std::cerr << fmt::format("note: {} is from an interrupted run ({} of {} frames)\n", path,
+                             manifest->info.value("frames_processed", size_t{0}),
+                             manifest->info.value("frames_requested", size_t{0}));
+  }
   Trajectory t = ReadTumTrajectory(path);
   if (t.empty()) throw Error(path + ": no poses in this trajectory file");
   return t;

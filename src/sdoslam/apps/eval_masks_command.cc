@@ -13,6 +13,7 @@
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/text_file.h"
 #include "sdoslam/eval/mask_metrics.h"
+#include "sdoslam/io/result_set.h"
 #include "sdoslam/io/tum_dataset.h"
 
 namespace sdoslam {
@@ -27,8 +28,8 @@ struct EvalMasksArgs {
 std::map<size_t, std::pair<std::vector<cv::Point2f>, std::vector<uint8_t>>> ReadFeatures(
     const std::filesystem::path& path) {
   std::map<size_t, std::pair<std::vector<cv::Point2f>, std::vector<uint8_t>>> by_frame;
-  if (!std::filesystem::exists(path)) return by_frame;
   std::ifstream in(path);
+  if (!in) throw Error(path.string() + ": cannot open");
   std::string line;
   size_t number = 0;
   while (std::getline(in, line)) {
@@ -61,8 +62,15 @@ void EvalMasks(const EvalMasksArgs& args) {
   }
   for (const std::string& run_folder : args.runs) {
     const std::filesystem::path run = run_folder;
-    if (!std::filesystem::is_directory(run / "masks"))
-      throw Error((run / "masks").string() + ": no masks (run with --save-masks)");
+    // Only a complete set is scored: never masks of an earlier run mixed with a newer one's.
+    const ResultManifest manifest = VerifyResultSet(run);
+    if (!std::filesystem::is_directory(run / "masks") || !manifest.Find("features.csv"))
+      throw Error(run.string() + ": no masks/ and features.csv (run with --save-masks)");
+    if (manifest.status != "complete") {
+      std::cout << fmt::format("note: {} is an interrupted run ({} of {} frames)\n", run.string(),
+                               manifest.info.value("frames_processed", size_t{0}),
+                               manifest.info.value("frames_requested", size_t{0}));
+    }
     MaskEvaluator evaluator(dataset);
     const auto features = ReadFeatures(run / "features.csv");
     for (size_t i = 0; i < rgb.size(); ++i) {

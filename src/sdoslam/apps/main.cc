@@ -1,8 +1,9 @@
-// sdoslam: one command, many subcommands. Library errors (sdoslam::Error) end here as one
-// message and exit code 1; command-line mistakes as CLI11's message and its exit code.
+// sdoslam: one command, many subcommands. Every failure ends here as one message and one exit
+// code of apps/exit_codes.h: bad input 1, usage 2, internal 3, I/O 4, interrupted 130 / 143.
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
+#include <filesystem>
 #include <iostream>
 
 #include "sdoslam/apps/bench_command.h"
@@ -10,6 +11,7 @@
 #include "sdoslam/apps/demo_command.h"
 #include "sdoslam/apps/eval_command.h"
 #include "sdoslam/apps/eval_masks_command.h"
+#include "sdoslam/apps/exit_codes.h"
 #include "sdoslam/apps/run_command.h"
 #include "sdoslam/apps/synth_command.h"
 #include "sdoslam/core/error.h"
@@ -31,14 +33,26 @@ int main(int argc, char** argv) {
   sdoslam::AddConvertCommand(app);
   try {
     app.parse(argc, argv);
+  } catch (const CLI::Success& e) {
+    return app.exit(e);  // --help
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    app.exit(e);  // prints CLI11's message and the hint to --help
+    return sdoslam::kExitUsage;
+  } catch (const sdoslam::ExitRequest& e) {
+    return e.code;
+  } catch (const sdoslam::IoError& e) {
+    std::cerr << "error: " << e.what() << '\n';
+    return sdoslam::kExitIo;
   } catch (const sdoslam::Error& e) {
     std::cerr << "error: " << e.what() << '\n';
-    return 1;
+    return sdoslam::kExitBadInput;
+  } catch (const std::filesystem::filesystem_error& e) {
+    // The file system refused something (permissions, space); its message names the path.
+    std::cerr << "error: " << e.what() << '\n';
+    return sdoslam::kExitIo;
   } catch (const std::exception& e) {
-    std::cerr << "internal error: " << e.what() << '\n';
-    return 3;
+    std::cerr << "internal error (please report it): " << e.what() << '\n';
+    return sdoslam::kExitInternal;
   }
-  return 0;
+  return sdoslam::kExitOk;
 }

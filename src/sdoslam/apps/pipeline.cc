@@ -1,16 +1,20 @@
 #include "sdoslam/apps/pipeline.h"
 
+#include <ceres/version.h>
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 #include <yaml-cpp/yaml.h>
 
+#include <Eigen/Core>
 #include <algorithm>
+#include <opencv2/core/version.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
 #include "sdoslam/dynamic/overlay.h"
+#include "sdoslam/io/result_set.h"
 
 namespace sdoslam {
 
@@ -44,6 +48,37 @@ RunOptions LoadRunConfig(const std::filesystem::path& config) {
   run.camera = ReadCameraOptions(*camera_section);
   run.slam = ReadSlamOptions(root);
   run.front_end = ReadFrontEndOptions(root);
+  if (std::optional<ConfigMap> section = root.Section("run")) {
+    std::string text;
+    if (section->Has("dataset")) {
+      section->Read("dataset", &text);
+      run.dataset = text;
+    }
+    if (section->Has("layout")) {
+      section->Read("layout", &text);
+      run.layout = ParseDatasetLayout(text);
+    }
+    if (section->Has("associations")) {
+      section->Read("associations", &text);
+      run.associations = text;
+    }
+    int64_t max_frames = 0;
+    section->Read("max_frames", &max_frames);
+    if (max_frames < 0) throw Error(config.string() + ": run.max_frames must be >= 0");
+    run.max_frames = static_cast<size_t>(max_frames);
+    section->Read("sequential", &run.slam.sequential);
+    section->Read("save_overlays", &run.save_overlays);
+    section->Read("save_masks", &run.save_masks);
+    section->RejectUnknownKeys();
+  }
+  if (std::optional<ConfigMap> versions = root.Section("versions")) {
+    // Informative: what wrote the file. Read so that it is not an unknown key.
+    std::string ignored;
+    for (const char* key : {"sdoslam", "opencv", "ceres", "eigen", "detector_model_sha256",
+                            "segmenter_model_sha256", "flow_model_sha256"})
+      versions->Read(key, &ignored);
+    versions->RejectUnknownKeys();
+  }
   root.RejectUnknownKeys();
   return run;
 }
@@ -64,9 +99,56 @@ cv::Mat LoadOracleLabels(const std::filesystem::path& dataset, const std::filesy
   return labels;
 }
 
+// config.yaml of a run: every option as resolved, and the `run:` section, so that
+// `sdoslam run --config OUT/config.yaml --out OTHER` repeats the run (bit-identical under
+// --sequential); `versions:` says what wrote it.
+std::string ResolvedConfig(const RunOptions& run) {
+  namespace fs = std::filesystem;
+  YAML::Emitter resolved;
+  resolved << YAML::BeginMap;
+  resolved << YAML::Key << "mode" << YAML::Value << ToString(run.mode);
+  resolved << YAML::Key << "run" << YAML::Value << YAML::BeginMap;
+  resolved << YAML::Key << "dataset" << YAML::Value
+           << fs::absolute(run.dataset).lexically_normal().string();
+  resolved << YAML::Key << "layout" << YAML::Value << ToString(run.layout);
+  if (!run.associations.empty()) {
+    resolved << YAML::Key << "associations" << YAML::Value
+             << fs::absolute(run.associations).lexically_normal().string();
+  }
+  resolved << YAML::Key << "max_frames" << YAML::Value << run.max_frames;
+  resolved << YAML::Key << "sequential" << YAML::Value << run.slam.sequential;
+  resolved << YAML::Key << "save_overlays" << YAML::Value << run.save_overlays;
+  resolved << YAML::Key << "save_masks" << YAML::Value << run.save_masks;
+  resolved << YAML::EndMap;
+  WriteCameraOptions(run.camera, &resolved);
+  WriteSlamOptions(run.slam, &resolved);
+  if (run.mode == RunMode::kSdo) WriteFrontEndOptions(run.front_end, &resolved);
+  resolved << YAML::Key << "versions" << YAML::Value << YAML::BeginMap;
+  resolved << YAML::Key << "sdoslam" << YAML::Value << SDOSLAM_VERSION;
+  resolved << YAML::Key << "opencv" << YAML::Value << CV_VERSION;
+  resolved << YAML::Key << "ceres" << YAML::Value << CERES_VERSION_STRING;
+  resolved << YAML::Key << "eigen" << YAML::Value
+           << fmt::format("{}.{}.{}", EIGEN_WORLD_VERSION, EIGEN_MAJOR_VERSION,
+                          EIGEN_MINOR_VERSION);
+  if (run.mode == RunMode::kSdo) {
+    for (const auto& [key, model] :
+         {std::pair{"detector_model_sha256", run.front_end.detector_model},
+          {"segmenter_model_sha256", run.front_end.segmenter_model},
+          {"flow_model_sha256", run.front_end.flow_model}}) {
+      if (!model.empty() && fs::is_regular_file(model))
+        resolved << YAML::Key << key << YAML::Value << Sha256OfFile(model);
+    }
+  }
+  resolved << YAML::EndMap;
+  resolved << YAML::EndMap;
+  return std::string(resolved.c_str()) + "\n";
+}
+
 }  // namespace
 
 RunSummary RunOnDataset(const RunOptions& options) {
+  // An unwritable --out fails here, before anything else is read.
+  ResultSetWriter results(options.out);
   DatasetOptions dataset_options;
   dataset_options.layout = options.layout;
   dataset_options.tum.associations = options.associations;
@@ -74,10 +156,11 @@ RunSummary RunOnDataset(const RunOptions& options) {
   RunOptions run = options;
   run.camera = dataset.camera();  // with intrinsics from the dataset where the config asks
   RunSummary summary;
-  summary.frames = run.max_frames > 0 ? std::min(dataset.size(), run.max_frames) : dataset.size();
+  summary.requested =
+      run.max_frames > 0 ? std::min(dataset.size(), run.max_frames) : dataset.size();
   const cv::Size image_size(run.camera.width, run.camera.height);
   std::vector<std::filesystem::path> rgb_paths;
-  for (size_t i = 0; i < summary.frames; ++i) rgb_paths.push_back(dataset.entries()[i].rgb_path);
+  for (size_t i = 0; i < summary.requested; ++i) rgb_paths.push_back(dataset.entries()[i].rgb_path);
 
   // Everything that can be wrong with the front end's inputs fails here, before the first frame.
   std::unique_ptr<FrontEnd> front_end;
@@ -100,17 +183,7 @@ RunSummary RunOnDataset(const RunOptions& options) {
     mask_evaluator.emplace(run.dataset);
   }
 
-  YAML::Emitter resolved;
-  resolved << YAML::BeginMap;
-  resolved << YAML::Key << "mode" << YAML::Value << ToString(run.mode);
-  WriteCameraOptions(run.camera, &resolved);
-  WriteSlamOptions(run.slam, &resolved);
-  if (run.mode == RunMode::kSdo) WriteFrontEndOptions(run.front_end, &resolved);
-  resolved << YAML::EndMap;
-
-  std::filesystem::create_directories(run.out);
-  if (run.save_overlays) std::filesystem::create_directories(run.out / "overlays");
-  if (run.save_masks) std::filesystem::create_directories(run.out / "masks");
+  const std::string resolved = ResolvedConfig(run);
 
   System slam(run.camera, run.slam);
   std::string log =
@@ -123,8 +196,13 @@ RunSummary RunOnDataset(const RunOptions& options) {
   std::vector<double> frame_ms, front_end_ms, mapping_ms, total_ms;
   std::vector<double> segment_ms, detect_ms, flow_ms, classify_ms;
   int best_depth_features = 0;
-  for (size_t i = 0; i < summary.frames; ++i) {
+  for (size_t i = 0; i < summary.requested; ++i) {
+    if (run.stop_requested && run.stop_requested()) {
+      summary.interrupted = true;
+      break;
+    }
     const RgbdFrame frame = dataset.Load(i);
+    summary.frames = i + 1;
     cv::Mat labels, segments;
     std::vector<uint8_t> locked_segments;
     std::optional<SdoResult> sdo;
@@ -188,13 +266,14 @@ RunSummary RunOnDataset(const RunOptions& options) {
       const cv::Mat overlay =
           DrawOverlay(frame.bgr, labels.empty() ? empty_labels : labels, sdo ? &*sdo : nullptr,
                       r.feature_points, r.feature_labels);
-      if (!cv::imwrite((run.out / "overlays" / name).string(), overlay))
-        throw Error((run.out / "overlays" / name).string() + ": cannot write");
+      const auto path = results.Stage("overlays/" + name);
+      if (!cv::imwrite(path.string(), overlay)) throw IoError(path.string() + ": cannot write");
     }
     if (run.save_masks) {
       const cv::Mat empty_labels(image_size, CV_8U, cv::Scalar(0));
-      if (!cv::imwrite((run.out / "masks" / name).string(), labels.empty() ? empty_labels : labels))
-        throw Error((run.out / "masks" / name).string() + ": cannot write");
+      const auto path = results.Stage("masks/" + name);
+      if (!cv::imwrite(path.string(), labels.empty() ? empty_labels : labels))
+        throw IoError(path.string() + ": cannot write");
       for (size_t k = 0; k < r.feature_points.size(); ++k) {
         feature_log += fmt::format("{},{:.2f},{:.2f},{}\n", i, r.feature_points[k].x,
                                    r.feature_points[k].y, r.feature_labels[k]);
@@ -221,13 +300,18 @@ RunSummary RunOnDataset(const RunOptions& options) {
   summary.median_mapping_ms = ComputeErrorStats(mapping_ms).median;
   if (mask_evaluator) summary.masks = mask_evaluator->result();
 
-  WriteTumTrajectory(run.out / "CameraTrajectory.txt", summary.trajectory);
-  WriteTumTrajectory(run.out / "KeyFrameTrajectory.txt", summary.keyframe_trajectory);
-  WriteFileAtomically(run.out / "config.yaml",
-                      [&](std::ostream& o) { o << resolved.c_str() << '\n'; });
-  WriteFileAtomically(run.out / "frames.csv", [&](std::ostream& o) { o << log; });
-  if (run.save_masks)
-    WriteFileAtomically(run.out / "features.csv", [&](std::ostream& o) { o << feature_log; });
+  WriteTumTrajectory(results.Stage("CameraTrajectory.txt"), summary.trajectory);
+  WriteTumTrajectory(results.Stage("KeyFrameTrajectory.txt"), summary.keyframe_trajectory);
+  results.WriteText("config.yaml", resolved);
+  results.WriteText("frames.csv", log);
+  if (run.save_masks) results.WriteText("features.csv", feature_log);
+  results.Commit(summary.interrupted ? "interrupted" : "complete",
+                 {{"mode", ToString(run.mode)},
+                  {"dataset", std::filesystem::absolute(run.dataset).lexically_normal().string()},
+                  {"frames_requested", summary.requested},
+                  {"frames_processed", summary.frames},
+                  {"frames_tracked", summary.tracked},
+                  {"sdoslam_version", SDOSLAM_VERSION}});
 
   if (dataset.ground_truth() && summary.trajectory.size() >= 3) {
     const Trajectory& gt = *dataset.ground_truth();

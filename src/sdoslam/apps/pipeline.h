@@ -39,15 +39,23 @@ struct RunOptions {
   // Called after each frame is tracked, e.g. to look at the map as it grows (with a mapping
   // thread, the map may be changing: read it under your own care, or run sequentially).
   std::function<void(const TrackingResult& result, const System& slam)> after_frame;
+  // Polled before each frame: when it returns true the run stops taking frames and commits
+  // what it has, marked "interrupted" (sdoslam run wires SIGINT/SIGTERM to it).
+  std::function<bool()> stop_requested;
 };
 
 // Reads a run's config file: `mode:` and the camera:, SLAM and dynamic: sections into the
-// matching RunOptions fields (the rest stay default). Unknown keys are errors naming the file and
-// line.
+// matching RunOptions fields (the rest stay default), and the `run:` section a run's own
+// config.yaml has (dataset, layout, associations, max_frames, sequential, save_*), so that a
+// config.yaml reruns its run. `versions:` is informative and not compared. Unknown keys are
+// errors naming the file and line.
 RunOptions LoadRunConfig(const std::filesystem::path& config);
 
 struct RunSummary {
-  size_t frames = 0, tracked = 0, lost = 0, not_initialized = 0;
+  size_t frames = 0;     // frames processed (fewer than asked for when interrupted)
+  size_t requested = 0;  // frames the run was asked to process
+  bool interrupted = false;
+  size_t tracked = 0, lost = 0, not_initialized = 0;
   size_t keyframes = 0, map_points = 0;
   double median_frame_ms = 0;              // features + tracking
   double median_front_end_ms = 0;          // the dynamic front end (0 in conventional mode)
@@ -64,8 +72,11 @@ struct RunSummary {
 };
 
 // Runs SLAM over the sequence and writes CameraTrajectory.txt, KeyFrameTrajectory.txt,
-// config.yaml (resolved) and frames.csv (per-frame log) into `out`. Throws Error for bad inputs
-// before the first frame, and when the first 30 frames cannot start the map (too little depth).
+// config.yaml (resolved: it reruns the run), frames.csv (per-frame log) and, when asked, masks/,
+// features.csv and overlays/ into `out` as one result set with its manifest.json (see
+// io/result_set.h): an earlier set there is replaced as a whole or not at all. Throws Error for
+// bad inputs and IoError for an unwritable `out` before the first frame, and Error when the first
+// 30 frames cannot start the map (too little depth).
 RunSummary RunOnDataset(const RunOptions& options);
 
 std::string FormatRunSummary(const RunSummary& summary);

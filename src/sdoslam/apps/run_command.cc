@@ -5,15 +5,24 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <csignal>
 #include <iostream>
 #include <memory>
 
+#include "sdoslam/apps/exit_codes.h"
 #include "sdoslam/apps/pipeline.h"
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
+#include "sdoslam/core/interrupt.h"
 
 namespace sdoslam {
 namespace {
+
+// The options whose defaults must not override a config's run: section: set only when given.
+struct RunCommandOptions {
+  CLI::Option* layout = nullptr;
+  CLI::Option* max_frames = nullptr;
+};
 
 struct RunArgs {
   std::string dataset;
@@ -28,25 +37,58 @@ struct RunArgs {
   bool save_masks = false;
 };
 
-void RunSlam(const RunArgs& args) {
+// Options of the dynamic front end say so when the mode has no front end.
+void WarnAboutOptionsWithoutEffect(const RunOverrides& o, RunMode mode) {
+  if (mode == RunMode::kSdo) return;
+  for (const auto& [flag, value] : {std::pair{"--segmenter", &o.segmenter},
+                                    {"--segmenter-model", &o.segmenter_model},
+                                    {"--detector", &o.detector},
+                                    {"--detector-model", &o.detector_model},
+                                    {"--flow", &o.flow},
+                                    {"--flow-model", &o.flow_model},
+                                    {"--consistency", &o.consistency}}) {
+    if (!value->empty()) {
+      spdlog::warn("{} has no effect in mode {}: only mode sdo runs the dynamic front end", flag,
+                   ToString(mode));
+    }
+  }
+}
+
+void RunSlam(const RunArgs& args, const RunCommandOptions& given) {
   // Everything that can be wrong with the inputs is found before the first frame.
   RunOptions run = LoadRunConfig(args.config);
   args.overrides.ApplyTo(&run);
-  run.slam.sequential = args.sequential;
-  run.dataset = args.dataset;
-  run.associations = args.associations;
-  run.layout = ParseDatasetLayout(args.layout);
+  WarnAboutOptionsWithoutEffect(args.overrides, run.mode);
+  // The command line wins over a config's run: section (a run's own config.yaml has one).
+  if (!args.dataset.empty()) run.dataset = args.dataset;
+  if (run.dataset.empty()) {
+    // A usage error (exit code 2), as a missing required option is.
+    throw CLI::RequiredError("--dataset (or a config with run.dataset, as a run's config.yaml)");
+  }
+  if (given.layout->count() > 0) run.layout = ParseDatasetLayout(args.layout);
+  if (!args.associations.empty()) run.associations = args.associations;
+  if (given.max_frames->count() > 0) run.max_frames = static_cast<size_t>(args.max_frames);
+  run.slam.sequential = run.slam.sequential || args.sequential;
+  run.save_overlays = run.save_overlays || args.save_overlays;
+  run.save_masks = run.save_masks || args.save_masks;
   run.out = args.out;
-  run.max_frames = static_cast<size_t>(args.max_frames);
-  run.save_overlays = args.save_overlays;
-  run.save_masks = args.save_masks;
+  InterruptHandler interrupts;
+  run.stop_requested = [] { return InterruptHandler::Requested(); };
   const RunSummary s = RunOnDataset(run);
   std::cout << FormatRunSummary(s) << "wrote " << args.out
             << "/CameraTrajectory.txt, KeyFrameTrajectory.txt, config.yaml, frames.csv"
-            << (args.save_masks ? ", masks/, features.csv" : "")
-            << (args.save_overlays ? ", overlays/" : "") << "\n";
+            << (run.save_masks ? ", masks/, features.csv" : "")
+            << (run.save_overlays ? ", overlays/" : "") << ", manifest.json\n";
   if (s.masks) std::cout << '\n' << FormatMaskEvaluation(*s.masks, "dynamic masks");
   if (s.evaluation) std::cout << '\n' << FormatTable({*s.evaluation}, EvaluationOptions{});
+  if (s.interrupted) {
+    std::cout << fmt::format(
+        "interrupted after {} of {} frames: the results so far are written, marked "
+        "\"interrupted\" in manifest.json\n",
+        s.frames, s.requested);
+    const int signal = InterruptHandler::ReceivedSignal();
+    throw ExitRequest{signal == SIGTERM ? kExitTerminated : kExitInterrupted};
+  }
 }
 
 }  // namespace
@@ -55,14 +97,16 @@ void AddRunCommand(CLI::App& app) {
   auto args = std::make_shared<RunArgs>();
   CLI::App* cmd = app.add_subcommand(
       "run", "RGB-D SLAM on a sequence (TUM, Bonn, sdoslam synth, Oxford Multi-motion)");
-  cmd->add_option("--dataset", args->dataset,
-                  "sequence folder: TUM layout (rgb.txt, depth.txt, rgb/, depth/) or an OMD "
-                  "segment (rgbd/, vicon.csv, vicon.yaml, kalibr.yaml)")
-      ->required();
-  cmd->add_option("--layout", args->layout,
-                  "folder layout: auto (by its files; rgbd_bonn_* folders are bonn), tum, omd, "
-                  "bonn (TUM files, ground truth of the markers brought to the camera)")
-      ->check(CLI::IsMember({"auto", "tum", "omd", "bonn"}));
+  auto given = std::make_shared<RunCommandOptions>();
+  cmd->add_option(
+      "--dataset", args->dataset,
+      "sequence folder: TUM layout (rgb.txt, depth.txt, rgb/, depth/) or an OMD "
+      "segment (rgbd/, vicon.csv, vicon.yaml, kalibr.yaml); default: the config's run.dataset");
+  given->layout =
+      cmd->add_option("--layout", args->layout,
+                      "folder layout: auto (by its files; rgbd_bonn_* folders are bonn), tum, omd, "
+                      "bonn (TUM files, ground truth of the markers brought to the camera)")
+          ->check(CLI::IsMember({"auto", "tum", "omd", "bonn"}));
   cmd->add_option(
          "--config", args->config,
          "config YAML: camera: and optional orb:, rgbd:, tracking:, consistency:, mapping:, "
@@ -70,8 +114,9 @@ void AddRunCommand(CLI::App& app) {
       ->required();
   cmd->add_option("--out", args->out, "output folder")->required();
   cmd->add_option("--associations", args->associations, "explicit rgb/depth association file");
-  cmd->add_option("--max-frames", args->max_frames, "stop after this many frames (0: all)")
-      ->check(CLI::NonNegativeNumber);
+  given->max_frames =
+      cmd->add_option("--max-frames", args->max_frames, "stop after this many frames (0: all)")
+          ->check(CLI::NonNegativeNumber);
   cmd->add_flag("--sequential", args->sequential,
                 "map inline after each keyframe: bit-identical runs (default: a mapping thread)");
   args->overrides.AddTo(cmd);
@@ -81,7 +126,7 @@ void AddRunCommand(CLI::App& app) {
   cmd->add_flag("--save-masks", args->save_masks,
                 "write masks/<frame>.png (0 static, 1 known movable, 2 moving unknown) and "
                 "features.csv, for sdoslam eval-masks");
-  cmd->callback([args] { RunSlam(*args); });
+  cmd->callback([args, given] { RunSlam(*args, *given); });
 }
 
 void RunOverrides::AddTo(CLI::App* cmd) {

@@ -28,15 +28,18 @@ void PrepareParent(const std::filesystem::path& path) {
   if (parent.empty()) return;
   std::error_code ec;
   std::filesystem::create_directories(parent, ec);
-  if (ec) throw Error("cannot create folder " + parent.string() + ": " + ec.message());
+  if (ec) throw IoError("cannot create folder " + parent.string() + ": " + ec.message());
 }
 
 void Commit(const std::filesystem::path& tmp, const std::filesystem::path& path) {
   std::error_code ec;
   std::filesystem::rename(tmp, path, ec);
   if (ec) {
-    std::filesystem::remove(tmp, ec);
-    throw Error("cannot write " + path.string() + ": " + ec.message());
+    // The rename's own error, read before the clean-up below can overwrite it.
+    const std::string why = ec.message();
+    std::error_code ignored;
+    std::filesystem::remove(tmp, ignored);
+    throw IoError("cannot write " + path.string() + ": " + why);
   }
 }
 
@@ -48,7 +51,7 @@ void WriteFileAtomically(const std::filesystem::path& path,
   const auto tmp = TemporaryPathFor(path);
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw Error("cannot write " + path.string());
+    if (!out) throw IoError("cannot write " + path.string());
     try {
       write(out);
     } catch (...) {
@@ -62,7 +65,7 @@ void WriteFileAtomically(const std::filesystem::path& path,
       out.close();
       std::error_code ec;
       std::filesystem::remove(tmp, ec);
-      throw Error("cannot write " + path.string() + " (disk full?)");
+      throw IoError("cannot write " + path.string() + " (disk full?)");
     }
   }
   Commit(tmp, path);
@@ -83,7 +86,7 @@ void WriteFileAtomically(const std::filesystem::path& path,
   if (!ok || !std::filesystem::exists(tmp)) {
     std::error_code ec;
     std::filesystem::remove(tmp, ec);
-    throw Error("cannot write " + path.string());
+    throw IoError("cannot write " + path.string());
   }
   Commit(tmp, path);
 }

@@ -50,5 +50,23 @@ TEST(AtomicFile, PathWriterKeepsExtensionAndReportsFailure) {
   EXPECT_FALSE(std::filesystem::exists(dir / "x.png"));
 }
 
+TEST(AtomicFile, AFailedRenameIsAnIoErrorWithTheRenamesOwnReason) {
+  testing::TempDir dir;
+  // A non-empty folder where the file should go: the rename fails (EISDIR).
+  testing::WriteText(dir / "result.txt" / "inside", "x");
+  try {
+    WriteFileAtomically(dir / "result.txt", [](std::ostream& o) { o << "new"; });
+    FAIL() << "no error";
+  } catch (const IoError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("result.txt"), std::string::npos) << message;
+    // The clean-up's error code (success) once replaced the rename's in the message.
+    EXPECT_EQ(message.find("Success"), std::string::npos) << message;
+    EXPECT_NE(message.find(std::make_error_code(std::errc::is_a_directory).message()),
+              std::string::npos)
+        << message;
+  }
+}
+
 }  // namespace
 }  // namespace sdoslam

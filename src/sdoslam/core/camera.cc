@@ -1,9 +1,11 @@
 #include "sdoslam/core/camera.h"
 
+#include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
 #include <opencv2/calib3d.hpp>
+#include <tuple>
 
 #include "sdoslam/core/error.h"
 
@@ -33,9 +35,16 @@ void CameraOptions::Check() const {
           "principal point must lie in the image");
   Require(std::isfinite(cy) && cy >= 0 && cy <= height, "cy",
           "principal point must lie in the image");
-  for (const auto& [name, value] :
-       {std::pair{"k1", k1}, {"k2", k2}, {"p1", p1}, {"p2", p2}, {"k3", k3}}) {
-    Require(std::isfinite(value), name, "must be finite");
+  // Bounds far outside any radial-tangential calibration (fisheye lenses have k1 near -0.5,
+  // strong wide-angle ones k3 of a few units): beyond them the model is not a lens, and the
+  // undistortion silently gave up (k1 = 1e30 behaved as no distortion at all).
+  for (const auto& [name, value, bound] : {std::tuple{"k1", k1, kMaxRadialK12},
+                                           {"k2", k2, kMaxRadialK12},
+                                           {"k3", k3, kMaxRadialK3},
+                                           {"p1", p1, kMaxTangential},
+                                           {"p2", p2, kMaxTangential}}) {
+    Require(std::isfinite(value) && std::abs(value) <= bound, name,
+            fmt::format("must be finite and within +-{} (got {})", bound, value));
   }
 }
 

@@ -79,6 +79,24 @@ TEST(Camera, CheckRejectsImpossibleIntrinsics) {
   o = Freiburg2();
   o.k1 = std::nan("");
   expect_error(o, "k1");
+  // Finite but no lens: 1e30 once passed and acted as no distortion.
+  o = Freiburg2();
+  o.k1 = 1e30;
+  expect_error(o, "k1");
+  o = Freiburg2();
+  o.p2 = -1.5;
+  expect_error(o, "p2");
+  o = Freiburg2();
+  o.k3 = 101;
+  expect_error(o, "k3");
+  o = Freiburg2();
+  o.k3 = 99;  // large, but within the documented bound
+  EXPECT_NO_THROW(o.Check());
+  o.fy = 0;
+  expect_error(o, "fy");
+  o = Freiburg2();
+  o.cy = -1;
+  expect_error(o, "cy");
 }
 
 TEST(CameraConfig, ShippedTumConfigsLoadWithPublishedValues) {

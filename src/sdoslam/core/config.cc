@@ -1,10 +1,33 @@
 #include "sdoslam/core/config.h"
 
 #include <fstream>
+#include <map>
 #include <sstream>
 
 namespace sdoslam {
 namespace {
+
+// yaml-cpp keeps every entry of a mapping but a lookup finds only the first, so a setting given
+// twice silently keeps its first value. Walk the tree and refuse it, naming both lines.
+void RejectDuplicateKeys(const YAML::Node& node, const std::string& origin,
+                         const std::string& prefix) {
+  if (node.IsSequence()) {
+    for (const YAML::Node& item : node) RejectDuplicateKeys(item, origin, prefix);
+    return;
+  }
+  if (!node.IsMap()) return;
+  std::map<std::string, int> first_line;
+  for (const auto& entry : node) {
+    const std::string key = entry.first.IsScalar() ? entry.first.Scalar() : "(complex key)";
+    const int line = entry.first.Mark().line + 1;
+    const auto [it, inserted] = first_line.emplace(key, line);
+    if (!inserted) {
+      throw Error(origin + ":" + std::to_string(line) + ": " + prefix + key +
+                  " is given twice (first on line " + std::to_string(it->second) + ")");
+    }
+    RejectDuplicateKeys(entry.second, origin, prefix + key + ".");
+  }
+}
 
 YAML::Node ParseRoot(const std::string& text, const std::string& origin) {
   YAML::Node root;
@@ -15,6 +38,7 @@ YAML::Node ParseRoot(const std::string& text, const std::string& origin) {
   }
   if (root.IsNull()) root = YAML::Node(YAML::NodeType::Map);  // an empty file is allowed
   if (!root.IsMap()) throw Error(origin + ": expected a mapping of settings at the top level");
+  RejectDuplicateKeys(root, origin, "");
   return root;
 }
 
@@ -69,7 +93,11 @@ std::optional<ConfigMap> ConfigMap::Section(const std::string& key) {
 
 void ConfigMap::RejectUnknownKeys() const {
   for (const auto& entry : node_) {
-    const std::string key = entry.first.as<std::string>();
+    // A key that is itself a list or a map (YAML's `? [a, b]: ...`) names no setting; say so
+    // instead of letting yaml-cpp's conversion exception escape as an internal error.
+    if (!entry.first.IsScalar())
+      throw Error(Where(entry.first) + "a key must be a plain name, not a list or map");
+    const std::string key = entry.first.Scalar();
     if (!used_.count(key)) {
       std::string known;
       for (const auto& k : used_) known += (known.empty() ? "" : ", ") + k;

@@ -50,6 +50,29 @@ TEST(ConfigMap, UnknownKeyIsNamedWithItsPathAndLine) {
             "cam.yaml:3: unknown key 'camera.fxx' (known here: fx)");
 }
 
+TEST(ConfigMap, AKeyThatIsAListOrMapIsNamedNotAnInternalError) {
+  // Found by fuzz/config_fuzz: YAML's explicit key `? ...` may be a list; yaml-cpp's string
+  // conversion of it threw its own exception past every handler.
+  ConfigMap root = ConfigMap::LoadString("mode: sdo\n? [a, b]\n: 1\n", "k.yaml");
+  std::string mode;
+  root.Read("mode", &mode);
+  EXPECT_EQ(MessageOf([&] { root.RejectUnknownKeys(); }),
+            "k.yaml:2: a key must be a plain name, not a list or map");
+}
+
+TEST(ConfigMap, AKeyGivenTwiceIsAnErrorNamingBothLines) {
+  // yaml-cpp alone keeps the first value and drops the second without a word.
+  EXPECT_EQ(MessageOf([] {
+              ConfigMap::LoadString("camera:\n  fx: 500\n  fy: 1\n  fx: 600\n", "c.yaml");
+            }),
+            "c.yaml:4: camera.fx is given twice (first on line 2)");
+  EXPECT_EQ(MessageOf([] { ConfigMap::LoadString("mode: sdo\nmode: oracle\n", "c.yaml"); }),
+            "c.yaml:2: mode is given twice (first on line 1)");
+  // The same key in two sections is fine.
+  EXPECT_EQ(MessageOf([] { ConfigMap::LoadString("a:\n  x: 1\nb:\n  x: 2\n", "c.yaml"); }),
+            "(no error)");
+}
+
 TEST(ConfigMap, WrongTypesAndBadYamlAreReportedWithLine) {
   ConfigMap root = ConfigMap::LoadString("n: 1\nwidth: wide\nlist: [1, 2]\n", "c.yaml");
   int width = 0;

@@ -13,4 +13,11 @@ class Error : public std::runtime_error {
   explicit Error(const std::string& message) : std::runtime_error(message) {}
 };
 
+// Results could not be written (an unwritable --out, a full disk, a failed rename): the inputs
+// were fine, the place to write is not. The `sdoslam` command exits 4 on it.
+class IoError : public Error {
+ public:
+  explicit IoError(const std::string& message) : Error(message) {}
+};
+
 }  // namespace sdoslam

@@ -10,6 +10,7 @@
 #include <opencv2/ximgproc/segmentation.hpp>
 
 #include "sdoslam/core/error.h"
+#include "sdoslam/io/image_header.h"
 
 namespace sdoslam {
 
@@ -104,23 +105,6 @@ Segmentation SegmentationFromInstanceIds(const cv::Mat& ids) {
   }
   s.count = static_cast<int>(renumber.size());
   return s;
-}
-
-PngHeader ReadPngHeader(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(path.string() + ": cannot open");
-  std::array<unsigned char, 26> b{};
-  in.read(reinterpret_cast<char*>(b.data()), b.size());
-  static constexpr std::array<unsigned char, 8> kSignature = {0x89, 'P',  'N',  'G',
-                                                              '\r', '\n', 0x1a, '\n'};
-  if (!in || !std::equal(kSignature.begin(), kSignature.end(), b.begin()) ||
-      std::string(b.begin() + 12, b.begin() + 16) != "IHDR") {
-    throw Error(path.string() + ": not a PNG file");
-  }
-  auto be32 = [&](int at) {
-    return static_cast<int>((b[at] << 24) | (b[at + 1] << 16) | (b[at + 2] << 8) | b[at + 3]);
-  };
-  return {be32(16), be32(20), b[24], b[25]};
 }
 
 FileSegmenter::FileSegmenter(std::filesystem::path folder, cv::Size image_size)

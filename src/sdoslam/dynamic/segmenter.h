@@ -64,13 +64,6 @@ class FileSegmenter : public Segmenter {
   cv::Size image_size_;
 };
 
-// Width, height and bit depth from a PNG header without decoding it. Throws Error naming the
-// file when it is not a PNG.
-struct PngHeader {
-  int width = 0, height = 0, bit_depth = 0, colour_type = 0;
-};
-PngHeader ReadPngHeader(const std::filesystem::path& path);
-
 // Renumbers arbitrary non-negative instance ids (0 = none) to segments 0..count-1.
 Segmentation SegmentationFromInstanceIds(const cv::Mat& ids);
 

@@ -170,16 +170,5 @@ TEST(OnnxYoloSegSegmenter, RejectsMissingFilesAndOtherSignatures) {
       << detector;
 }
 
-TEST(PngHeader, ReadsSizeAndRejectsOtherFiles) {
-  testing::TempDir dir;
-  ASSERT_TRUE(cv::imwrite((dir / "x.png").string(), cv::Mat(7, 11, CV_16U, cv::Scalar(0))));
-  const PngHeader h = ReadPngHeader(dir / "x.png");
-  EXPECT_EQ(h.width, 11);
-  EXPECT_EQ(h.height, 7);
-  EXPECT_EQ(h.bit_depth, 16);
-  testing::WriteText(dir / "y.png", "not a png at all, but long enough");
-  EXPECT_THROW(ReadPngHeader(dir / "y.png"), Error);
-}
-
 }  // namespace
 }  // namespace sdoslam

@@ -7,6 +7,7 @@
 
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
+#include "sdoslam/io/image_header.h"
 
 namespace sdoslam {
 
@@ -144,17 +145,23 @@ RgbdFrame LoadRgbdFrame(const RgbdFrameEntry& entry, size_t index, const CameraO
   frame.timestamp = entry.timestamp;
   frame.depth_timestamp = entry.depth_timestamp;
 
-  auto check_size = [&](const cv::Mat& image, const std::filesystem::path& path) {
-    if (image.cols != camera.width || image.rows != camera.height) {
-      throw Error(path.string() + ": image is " + std::to_string(image.cols) + "x" +
-                  std::to_string(image.rows) + ", the camera config says " +
+  auto check_size = [&](cv::Size size, const std::filesystem::path& path) {
+    if (size.width != camera.width || size.height != camera.height) {
+      throw Error(path.string() + ": image is " + std::to_string(size.width) + "x" +
+                  std::to_string(size.height) + ", the camera config says " +
                   std::to_string(camera.width) + "x" + std::to_string(camera.height));
     }
   };
 
+  // A PNG of the wrong size is refused from its header, before it is decoded.
+  for (const auto& path : {entry.rgb_path, entry.depth_path}) {
+    if (const std::optional<PngHeader> header = TryReadPngHeader(path)) {
+      check_size(cv::Size(header->width, header->height), path);
+    }
+  }
   frame.bgr = cv::imread(entry.rgb_path.string(), cv::IMREAD_COLOR);
   if (frame.bgr.empty()) throw Error(entry.rgb_path.string() + ": cannot decode image");
-  check_size(frame.bgr, entry.rgb_path);
+  check_size(frame.bgr.size(), entry.rgb_path);
 
   const cv::Mat raw = cv::imread(entry.depth_path.string(), cv::IMREAD_UNCHANGED);
   if (raw.empty()) throw Error(entry.depth_path.string() + ": cannot decode image");
@@ -163,7 +170,7 @@ RgbdFrame LoadRgbdFrame(const RgbdFrameEntry& entry, size_t index, const CameraO
                 std::to_string(raw.elemSize1() * 8) + "-bit with " +
                 std::to_string(raw.channels()) + " channel(s)");
   }
-  check_size(raw, entry.depth_path);
+  check_size(raw.size(), entry.depth_path);
   raw.convertTo(frame.depth, CV_32F, 1.0 / camera.depth_factor);
   // Outside the sensor's range a reading is noise; zero means "no depth" everywhere downstream.
   cv::Mat out_of_range = (frame.depth < camera.depth_min) | (frame.depth > camera.depth_max);

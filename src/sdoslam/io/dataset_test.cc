@@ -26,6 +26,26 @@ void WriteOmd(const std::filesystem::path& dir) {
                      "  rostopic: /camera/color/image_raw\n");
 }
 
+// A one-frame TUM folder with 16 x 12 images.
+void WriteOneFrameTum(const std::filesystem::path& dir) {
+  std::filesystem::create_directories(dir / "rgb");
+  std::filesystem::create_directories(dir / "depth");
+  cv::imwrite((dir / "rgb" / "1.png").string(), cv::Mat(12, 16, CV_8UC3, cv::Scalar(1, 2, 3)));
+  cv::imwrite((dir / "depth" / "1.png").string(), cv::Mat(12, 16, CV_16UC1, cv::Scalar(9)));
+  testing::WriteText(dir / "rgb.txt", "1.0 rgb/1.png\n");
+  testing::WriteText(dir / "depth.txt", "1.0 depth/1.png\n");
+}
+
+CameraOptions Tiny16x12() {
+  CameraOptions camera;
+  camera.width = 16;
+  camera.height = 12;
+  camera.fx = camera.fy = 20;
+  camera.cx = 8;
+  camera.cy = 6;
+  return camera;
+}
+
 CameraOptions FromDataset() {
   CameraOptions camera;
   camera.from_dataset = true;
@@ -101,21 +121,28 @@ TEST(Dataset, CameraFromATumFolderNeedsItsCameraYaml) {
 
 TEST(Dataset, AMalformedGroundTruthFailsWhenTheDatasetIsOpened) {
   testing::TempDir dir;
-  std::filesystem::create_directories(dir / "rgb");
-  std::filesystem::create_directories(dir / "depth");
-  cv::imwrite((dir / "rgb" / "1.png").string(), cv::Mat(12, 16, CV_8UC3, cv::Scalar(1, 2, 3)));
-  cv::imwrite((dir / "depth" / "1.png").string(), cv::Mat(12, 16, CV_16UC1, cv::Scalar(9)));
-  testing::WriteText(dir / "rgb.txt", "1.0 rgb/1.png\n");
-  testing::WriteText(dir / "depth.txt", "1.0 depth/1.png\n");
+  WriteOneFrameTum(dir.path());
   testing::WriteText(dir / "groundtruth.txt", "1.0 0 0 0 0 0 0\n");
-  CameraOptions camera;
-  camera.width = 16;
-  camera.height = 12;
-  camera.fx = camera.fy = 20;
-  camera.cx = 8;
-  camera.cy = 6;
+  const CameraOptions camera = Tiny16x12();
   EXPECT_NE(testing::MessageOf([&] { RgbdDataset(dir.path(), camera); }).find("groundtruth.txt:1"),
             std::string::npos);
+}
+
+TEST(Dataset, APngOfTheWrongSizeIsRefusedFromItsHeaderBeforeDecoding) {
+  testing::TempDir dir;
+  WriteOneFrameTum(dir.path());
+  // A real PNG header declaring 16384 x 16384, then garbage: decoding would fail (or, for a
+  // genuine file, take 853 MB); the header alone must decide.
+  std::string png = "\x89PNG\r\n\x1a\n";
+  png += std::string("\0\0\0\x0dIHDR", 8);
+  png += std::string("\0\0\x40\0\0\0\x40\0", 8);
+  png += "not image data";
+  testing::WriteText(dir / "rgb" / "1.png", png);
+  const CameraOptions camera = Tiny16x12();
+  const RgbdDataset dataset(dir.path(), camera);
+  EXPECT_EQ(
+      testing::MessageOf([&] { dataset.Load(0); }),
+      (dir / "rgb" / "1.png").string() + ": image is 16384x16384, the camera config says 16x12");
 }
 
 }  // namespace

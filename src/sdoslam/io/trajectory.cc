@@ -41,6 +41,13 @@ Trajectory ReadTumTrajectory(const std::filesystem::path& path,
     static const char* kNames[] = {"timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw"};
     double v[8];
     for (int k = 0; k < 8; ++k) v[k] = ParseDouble(tokens[k], path, line, kNames[k]);
+    for (int k = 1; k <= 3; ++k) {
+      if (std::abs(v[k]) > options.max_abs_position) {
+        throw Error(Where(path, line) + kNames[k] + " is " + tokens[k] + " m (more than " +
+                    std::to_string(static_cast<long long>(options.max_abs_position)) +
+                    " m from the origin: not a position)");
+      }
+    }
     Eigen::Quaterniond q(v[7], v[4], v[5], v[6]);
     const double norm = q.norm();
     if (std::abs(norm - 1.0) > options.quaternion_norm_tolerance) {

@@ -20,10 +20,14 @@ struct TrajectoryReadOptions {
   // Quaternions whose norm differs from 1 by less than this are normalised; larger deviations
   // are errors (they mean a broken writer, not rounding).
   double quaternion_norm_tolerance = 1e-2;
+  // Positions farther than this from the origin (metres) are errors: no indoor or outdoor
+  // sequence reaches them, and squares of 1e308 overflow the error statistics to inf.
+  double max_abs_position = 1e6;
 };
 
 // Reads a TUM trajectory (`timestamp tx ty tz qx qy qz qw`, '#' comments). Throws Error naming
-// file and line for a wrong column count, a non-number or NaN, a bad quaternion, or timestamps
+// file and line for a wrong column count, a non-number or NaN, an absurd position, a bad
+// quaternion, or timestamps
 // that do not increase.
 Trajectory ReadTumTrajectory(const std::filesystem::path& path,
                              const TrajectoryReadOptions& options = {});

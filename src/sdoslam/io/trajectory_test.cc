@@ -57,6 +57,11 @@ TEST(Trajectory, BadRowsAreRejectedWithFileAndLine) {
             path.string() + ":2: expected 8 columns (timestamp tx ty tz qx qy qz qw), found 7");
   testing::WriteText(path, "1.0 0 nan 0 0 0 0 1\n");
   EXPECT_NE(ErrorOf(path).find(":1: ty is nan"), std::string::npos);
+  // Finite but absurd: its square overflowed ATE to inf, printed with exit code 0.
+  testing::WriteText(path, "1.0 0 0 0 0 0 0 1\n2.0 1e308 0 0 0 0 0 1\n");
+  EXPECT_NE(ErrorOf(path).find(":2: tx is 1e308 m (more than"), std::string::npos) << ErrorOf(path);
+  testing::WriteText(path, "1.0 0 0 -2e6 0 0 0 1\n");
+  EXPECT_NE(ErrorOf(path).find(":1: tz is -2e6 m"), std::string::npos);
   testing::WriteText(path, "1.0 0 0 0 0 0 0 2\n");
   EXPECT_NE(ErrorOf(path).find(":1: quaternion norm is 2"), std::string::npos);
   testing::WriteText(path, "1.0 0 0 0 0 0 0 1\n1.0 0 0 0 0 0 0 1\n");
