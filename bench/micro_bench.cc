@@ -5,6 +5,7 @@
 #include <opencv2/imgproc.hpp>
 #include <random>
 
+#include "sdoslam/dynamic/geometric_segmenter.h"
 #include "sdoslam/features/orb_extractor.h"
 #include "sdoslam/optim/optimizer.h"
 #include "sdoslam/synth/renderer.h"
@@ -13,16 +14,39 @@
 namespace sdoslam {
 namespace {
 
-cv::Mat SyntheticGray() {
+FrontEndFrame SyntheticFrame() {
   const synth::Scenario s = synth::MakeScenario("walking_xyz", 10.0);
   const Camera camera(synth::SyntheticCamera());
   const synth::RenderedView view =
       synth::Render(s.scene, 2.0, synth::CameraPoseAt(s.motion, 2.0, 10.0), camera);
-  cv::Mat bgr, gray;
-  view.colour.convertTo(bgr, CV_8UC3, 255.0);
-  cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
+  FrontEndFrame frame;
+  view.colour.convertTo(frame.bgr, CV_8UC3, 255.0);
+  frame.depth = view.depth;
+  return frame;
+}
+
+cv::Mat SyntheticGray() {
+  cv::Mat gray;
+  cv::cvtColor(SyntheticFrame().bgr, gray, cv::COLOR_BGR2GRAY);
   return gray;
 }
+
+// The two class-agnostic segmenters that need no file, on one rendered 640 x 480 RGB-D frame.
+void BM_SegmentRgbdGraph(benchmark::State& state) {
+  const FrontEndFrame frame = SyntheticFrame();
+  RgbdSegmenter segmenter;
+  for (auto _ : state) benchmark::DoNotOptimize(segmenter.Segment(frame).count);
+}
+BENCHMARK(BM_SegmentRgbdGraph)->Unit(benchmark::kMillisecond);
+
+void BM_SegmentGeometric(benchmark::State& state) {
+  const FrontEndFrame frame = SyntheticFrame();
+  GeometricSegmenterOptions options;
+  options.work_width = static_cast<int>(state.range(0));
+  GeometricSegmenter segmenter(options, Camera(synth::SyntheticCamera()).K(), frame.bgr.size());
+  for (auto _ : state) benchmark::DoNotOptimize(segmenter.Segment(frame).count);
+}
+BENCHMARK(BM_SegmentGeometric)->Arg(320)->Arg(240)->Arg(160)->Unit(benchmark::kMillisecond);
 
 void BM_OrbExtract640x480(benchmark::State& state) {
   const cv::Mat gray = SyntheticGray();

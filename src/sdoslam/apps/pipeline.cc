@@ -165,7 +165,8 @@ RunSummary RunOnDataset(const RunOptions& options) {
   // Everything that can be wrong with the front end's inputs fails here, before the first frame.
   std::unique_ptr<FrontEnd> front_end;
   if (run.mode == RunMode::kSdo) {
-    front_end = std::make_unique<FrontEnd>(run.front_end, run.dataset, image_size, rgb_paths);
+    front_end = std::make_unique<FrontEnd>(run.front_end, run.dataset, image_size, rgb_paths,
+                                           Camera(run.camera).K());
   }
   if (run.mode == RunMode::kOracle) {
     for (const auto& rgb : rgb_paths) {

@@ -134,7 +134,7 @@ void RunOverrides::AddTo(CLI::App* cmd) {
                   "conventional (all features), sdo (the dynamic front end), oracle (ground-truth "
                   "masks of a synthetic sequence); default: the config's mode: or conventional");
   cmd->add_option("--segmenter", segmenter,
-                  "override dynamic.segmenter.backend: rgbd, onnx-yoloseg, file");
+                  "override dynamic.segmenter.backend: rgbd, geometric, onnx-yoloseg, file");
   cmd->add_option(
       "--detector", detector,
       "override dynamic.detector.backend: nanodet, fastestdet, yolov8, hog, file, none");

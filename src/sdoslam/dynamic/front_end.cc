@@ -12,7 +12,7 @@
 namespace sdoslam {
 namespace {
 
-const std::vector<std::string> kSegmenters = {"rgbd", "onnx-yoloseg", "file"};
+const std::vector<std::string> kSegmenters = {"rgbd", "geometric", "onnx-yoloseg", "file"};
 const std::vector<std::string> kDetectors = {"nanodet", "fastestdet", "yolov8",
                                              "hog",     "file",       "none"};
 const std::vector<std::string> kFlows = {"dis", "farneback", "onnx"};
@@ -57,6 +57,7 @@ void FrontEndOptions::Check() const {
   CheckName("flow", flow, kFlows);
   if (detect_every < 1) throw Error("detector.every must be at least 1");
   rgbd.Check();
+  geometric.Check();
   yoloseg.Check();
   detection.Check();
   hog.Check();
@@ -94,6 +95,19 @@ FrontEndOptions ReadFrontEndOptions(ConfigMap& root) {
     s->Read("nms_iou", &o.yoloseg.nms_iou);
     s->Read("mask_threshold", &o.yoloseg.mask_threshold);
     s->Read("max_instances", &o.yoloseg.max_instances);
+    if (auto g = s->Section("geometric")) {
+      GeometricSegmenterOptions& go = o.geometric;
+      g->Read("work_width", &go.work_width);
+      g->Read("depth_step", &go.depth_step);
+      g->Read("depth_step_min_m", &go.depth_step_min_m);
+      g->Read("concave_angle_deg", &go.concave_angle_deg);
+      g->Read("normal_window", &go.normal_window);
+      g->Read("concave_span_px", &go.concave_span_px);
+      g->Read("min_size", &go.min_size);
+      g->Read("grow_passes", &go.grow_passes);
+      g->Read("max_grow_depth_ratio", &go.max_grow_depth_ratio);
+      g->RejectUnknownKeys();
+    }
     s->RejectUnknownKeys();
   }
   if (auto s = section->Section("detector")) {
@@ -171,6 +185,17 @@ void WriteFrontEndOptions(const FrontEndOptions& o, YAML::Emitter* out) {
   kv("nms_iou", o.yoloseg.nms_iou);
   kv("mask_threshold", o.yoloseg.mask_threshold);
   kv("max_instances", o.yoloseg.max_instances);
+  y << YAML::Key << "geometric" << YAML::Value << YAML::BeginMap;
+  kv("work_width", o.geometric.work_width);
+  kv("depth_step", o.geometric.depth_step);
+  kv("depth_step_min_m", o.geometric.depth_step_min_m);
+  kv("concave_angle_deg", o.geometric.concave_angle_deg);
+  kv("normal_window", o.geometric.normal_window);
+  kv("concave_span_px", o.geometric.concave_span_px);
+  kv("min_size", o.geometric.min_size);
+  kv("grow_passes", o.geometric.grow_passes);
+  kv("max_grow_depth_ratio", o.geometric.max_grow_depth_ratio);
+  y << YAML::EndMap;
   y << YAML::EndMap;
   y << YAML::Key << "detector" << YAML::Value << YAML::BeginMap;
   kv("backend", o.detector);
@@ -220,11 +245,14 @@ void WriteFrontEndOptions(const FrontEndOptions& o, YAML::Emitter* out) {
 }
 
 FrontEnd::FrontEnd(const FrontEndOptions& options, const std::filesystem::path& dataset_folder,
-                   cv::Size image_size, const std::vector<std::filesystem::path>& rgb_paths)
+                   cv::Size image_size, const std::vector<std::filesystem::path>& rgb_paths,
+                   const cv::Matx33d& K)
     : options_(options), image_size_(image_size), classifier_(options.classifier) {
   options_.Check();
   if (options_.segmenter == "rgbd") {
     segmenter_ = std::make_unique<RgbdSegmenter>(options_.rgbd);
+  } else if (options_.segmenter == "geometric") {
+    segmenter_ = std::make_unique<GeometricSegmenter>(options_.geometric, K, image_size);
   } else if (options_.segmenter == "onnx-yoloseg") {
     segmenter_ = std::make_unique<OnnxYoloSegSegmenter>(options_.segmenter_model, options_.yoloseg);
   } else {

@@ -10,6 +10,7 @@
 #include "sdoslam/dynamic/classifier.h"
 #include "sdoslam/dynamic/detector.h"
 #include "sdoslam/dynamic/flow.h"
+#include "sdoslam/dynamic/geometric_segmenter.h"
 #include "sdoslam/dynamic/motion_boundaries.h"
 #include "sdoslam/dynamic/segmenter.h"
 #include "sdoslam/dynamic/yoloseg.h"
@@ -22,10 +23,11 @@ namespace sdoslam {
 
 // Backends and settings of the dynamic-object front end (config section `dynamic:`).
 struct FrontEndOptions {
-  std::string segmenter = "rgbd";         // rgbd | onnx-yoloseg | file
+  std::string segmenter = "rgbd";         // rgbd | geometric | onnx-yoloseg | file
   std::filesystem::path segmenter_model;  // onnx-yoloseg: Fast-SAM / YOLOv8-seg export
   std::filesystem::path masks_folder;     // file: instance PNGs (relative: to the dataset)
   RgbdSegmenterOptions rgbd;
+  GeometricSegmenterOptions geometric;  // config: dynamic.segmenter.geometric.*
   YoloSegOptions yoloseg;
 
   std::string detector = "hog";           // nanodet | fastestdet | yolov8 | hog | file | none
@@ -61,8 +63,10 @@ class FrontEnd {
   // Builds the backends. Relative file-backend paths resolve against `dataset_folder`. Throws
   // Error for unknown backends, missing or unreadable files, models whose outputs do not match
   // their backend, and (file backends) masks or detections that do not fit `rgb_paths`.
+  // K: the camera matrix, which the geometric segmenter needs (zero: none given).
   FrontEnd(const FrontEndOptions& options, const std::filesystem::path& dataset_folder,
-           cv::Size image_size, const std::vector<std::filesystem::path>& rgb_paths = {});
+           cv::Size image_size, const std::vector<std::filesystem::path>& rgb_paths = {},
+           const cv::Matx33d& K = cv::Matx33d::zeros());
   ~FrontEnd();
 
   SdoResult Process(const FrontEndFrame& frame, FrontEndTiming* timing = nullptr);

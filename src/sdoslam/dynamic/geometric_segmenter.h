@@ -1,0 +1,55 @@
+#pragma once
+
+#include <opencv2/core.hpp>
+
+#include "sdoslam/dynamic/segmenter.h"
+
+namespace cv::rgbd {
+class RgbdNormals;
+}
+
+namespace sdoslam {
+
+// Segments that follow the geometry of the depth image (issue 15 part 2), after the geometric
+// segmentation used for unknown objects in dense RGB-D SLAM (Tateno et al. 2015; Co-Fusion):
+// a pixel is an edge where the depth steps (an occluding outline) or where the surface folds
+// concavely (an object standing on a desk, a box on the floor); segments are the connected
+// regions between edges. Edge and hole pixels then join the neighbouring segment of nearest
+// depth, or of nearest colour where there is no depth, so outlines stay on the object they
+// belong to. Concave creases cut, convex ones do not: a box's own edges are convex and keep it
+// whole, while the line where it meets the floor is concave and cuts it off.
+// Normals come from OpenCV's rgbd module (RgbdNormals, FALS); the edge test and the region
+// growing are a few loops of our own, since no library here segments by concavity.
+struct GeometricSegmenterOptions {
+  int work_width = 320;                // px; segmentation runs at this width (aspect kept)
+  double depth_step = 0.04;            // an edge where neighbours' depths differ by this fraction
+  double depth_step_min_m = 0.01;      // ... and by at least this many metres (sensor noise)
+  double concave_angle_deg = 25;       // an edge where the surface folds concavely by this much
+  int normal_window = 5;               // RgbdNormals window (1, 3, 5 or 7 work px)
+  int concave_span_px = 3;             // the crease test looks this far to each side
+  int min_size = 30;                   // px at work resolution; smaller regions join a neighbour
+  int grow_passes = 6;                 // passes that give edge and hole pixels a segment
+  double max_grow_depth_ratio = 0.15;  // an edge pixel joins only a segment this near in depth
+  void Check() const;
+};
+
+class GeometricSegmenter : public Segmenter {
+ public:
+  // K: the camera matrix at full image resolution (normals need the back-projection).
+  GeometricSegmenter(const GeometricSegmenterOptions& options, const cv::Matx33d& K,
+                     cv::Size image_size);
+  Segmentation Segment(const FrontEndFrame& frame) override;  // at work resolution
+
+  // The edge map of the last frame at work resolution (CV_8U: 127 = depth step, 254 = concave
+  // crease, 0 = none), for tests and overlays.
+  const cv::Mat& last_edges() const { return last_edges_; }
+
+ private:
+  GeometricSegmenterOptions options_;
+  cv::Size work_size_;
+  cv::Matx33d K_work_;  // the camera matrix at work resolution
+  cv::Ptr<cv::rgbd::RgbdNormals> normals_;
+  cv::Mat last_edges_;
+};
+
+}  // namespace sdoslam
