@@ -23,7 +23,7 @@ namespace sdoslam {
 
 // Backends and settings of the dynamic-object front end (config section `dynamic:`).
 struct FrontEndOptions {
-  std::string segmenter = "rgbd";         // rgbd | geometric | onnx-yoloseg | file
+  std::string segmenter = "geometric";    // geometric | rgbd | onnx-yoloseg | file
   std::filesystem::path segmenter_model;  // onnx-yoloseg: Fast-SAM / YOLOv8-seg export
   std::filesystem::path masks_folder;     // file: instance PNGs (relative: to the dataset)
   RgbdSegmenterOptions rgbd;
