@@ -33,6 +33,11 @@ struct SceneFlowOptions {
   double segment_ratio = 0.3;
   int min_segment_features = 3;  // measured features a segment needs to be judged
   int max_iterations = 5;        // pose re-estimations per frame
+  // The check's static set is kept when at least this many inliers remain; below it the frame
+  // keeps the rough estimate. Lower than tracking.min_inliers: when a mover fills most of the
+  // view (the carried box), the few features left on the room give a better pose than the many
+  // on the mover.
+  int min_inliers_kept = 15;
   // Lucas–Kanade: window (px) and pyramid levels; a correspondence whose error per pixel
   // exceeds max_track_error (8-bit intensity units) is left unmeasured.
   int track_window = 21;
@@ -77,6 +82,7 @@ struct SceneFlowOptions {
     visit("segment_ratio", o.segment_ratio);
     visit("min_segment_features", o.min_segment_features);
     visit("max_iterations", o.max_iterations);
+    visit("min_inliers_kept", o.min_inliers_kept);
     visit("track_window", o.track_window);
     visit("track_levels", o.track_levels);
     visit("max_track_error", o.max_track_error);

@@ -625,7 +625,7 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
     const MapPoint* p = frame.map_points[i];
     inliers += p != nullptr && !p->bad && !frame.outlier[i] && !p->observations.empty();
   }
-  if (inliers < options_.min_inliers) {
+  if (inliers < o.min_inliers_kept) {
     // Too little would be left to track: keep the rough estimate rather than lose the camera.
     frame.map_points = matched;
     frame.outlier = rough_outlier;
