@@ -96,16 +96,8 @@ FrontEndOptions ReadFrontEndOptions(ConfigMap& root) {
     s->Read("mask_threshold", &o.yoloseg.mask_threshold);
     s->Read("max_instances", &o.yoloseg.max_instances);
     if (auto g = s->Section("geometric")) {
-      GeometricSegmenterOptions& go = o.geometric;
-      g->Read("work_width", &go.work_width);
-      g->Read("depth_step", &go.depth_step);
-      g->Read("depth_step_min_m", &go.depth_step_min_m);
-      g->Read("concave_angle_deg", &go.concave_angle_deg);
-      g->Read("normal_window", &go.normal_window);
-      g->Read("concave_span_px", &go.concave_span_px);
-      g->Read("min_size", &go.min_size);
-      g->Read("grow_passes", &go.grow_passes);
-      g->Read("max_grow_depth_ratio", &go.max_grow_depth_ratio);
+      GeometricSegmenterOptions::VisitFields(
+          o.geometric, [&](const char* key, auto& value) { g->Read(key, &value); });
       g->RejectUnknownKeys();
     }
     s->RejectUnknownKeys();
@@ -186,15 +178,7 @@ void WriteFrontEndOptions(const FrontEndOptions& o, YAML::Emitter* out) {
   kv("mask_threshold", o.yoloseg.mask_threshold);
   kv("max_instances", o.yoloseg.max_instances);
   y << YAML::Key << "geometric" << YAML::Value << YAML::BeginMap;
-  kv("work_width", o.geometric.work_width);
-  kv("depth_step", o.geometric.depth_step);
-  kv("depth_step_min_m", o.geometric.depth_step_min_m);
-  kv("concave_angle_deg", o.geometric.concave_angle_deg);
-  kv("normal_window", o.geometric.normal_window);
-  kv("concave_span_px", o.geometric.concave_span_px);
-  kv("min_size", o.geometric.min_size);
-  kv("grow_passes", o.geometric.grow_passes);
-  kv("max_grow_depth_ratio", o.geometric.max_grow_depth_ratio);
+  GeometricSegmenterOptions::VisitFields(o.geometric, kv);
   y << YAML::EndMap;
   y << YAML::EndMap;
   y << YAML::Key << "detector" << YAML::Value << YAML::BeginMap;

@@ -31,6 +31,20 @@ struct GeometricSegmenterOptions {
   int grow_passes = 6;                 // passes that give edge and hole pixels a segment
   double max_grow_depth_ratio = 0.15;  // an edge pixel joins only a segment this near in depth
   void Check() const;
+
+  // Calls visit(key, member) for every setting: one list of config keys for reading and writing.
+  template <class Options, class Visitor>
+  static void VisitFields(Options& o, Visitor&& visit) {
+    visit("work_width", o.work_width);
+    visit("depth_step", o.depth_step);
+    visit("depth_step_min_m", o.depth_step_min_m);
+    visit("concave_angle_deg", o.concave_angle_deg);
+    visit("normal_window", o.normal_window);
+    visit("concave_span_px", o.concave_span_px);
+    visit("min_size", o.min_size);
+    visit("grow_passes", o.grow_passes);
+    visit("max_grow_depth_ratio", o.max_grow_depth_ratio);
+  }
 };
 
 class GeometricSegmenter : public Segmenter {
