@@ -14,6 +14,7 @@ struct SegmentStats {
   int outline_on_boundary = 0;
   int depth_pairs = 0;  // neighbour pairs across the outline with depth on both sides
   int in_front = 0;     // ... where this segment is the nearer side
+  int behind = 0;       // ... where the other segment is the nearer side
   float median_depth = 0;
   std::vector<float> depths;
 };
@@ -36,6 +37,7 @@ void SdoClassifierOptions::Check() const {
   fraction(min_inside_box, "min_inside_box");
   fraction(min_outline_on_boundary, "min_outline_on_boundary");
   fraction(min_in_front, "min_in_front");
+  fraction(min_in_front_of_outline, "min_in_front_of_outline");
   fraction(max_segment_area, "max_segment_area");
   fraction(persistence_overlap, "persistence_overlap");
   if (same_depth_tolerance < 0) throw Error("classifier.same_depth_tolerance must be ≥ 0");
@@ -104,8 +106,8 @@ SdoResult SdoClassifier::Classify(const Segmentation& segments,
           SegmentStats& other = stats[static_cast<size_t>(t)];
           ++st.depth_pairs;
           ++other.depth_pairs;
-          if (dt > d[x] * ratio) ++st.in_front;
-          if (d[x] > dt * ratio) ++other.in_front;
+          if (dt > d[x] * ratio) ++st.in_front, ++other.behind;
+          if (d[x] > dt * ratio) ++other.in_front, ++st.behind;
         }
       }
       // Left and up neighbours only mark this pixel as outline.
@@ -186,8 +188,10 @@ SdoResult SdoClassifier::Classify(const Segmentation& segments,
     if (st.outline == 0 || st.area > max_area) continue;
     const bool on_boundary =
         st.outline_on_boundary >= options_.min_outline_on_boundary * st.outline;
+    const int ordered = st.in_front + st.behind;
     const bool in_front =
-        st.depth_pairs == 0 || st.in_front >= options_.min_in_front * st.depth_pairs;
+        st.depth_pairs == 0 || (st.in_front >= options_.min_in_front * ordered &&
+                                st.in_front >= options_.min_in_front_of_outline * st.depth_pairs);
     moving[static_cast<size_t>(s)] = on_boundary && in_front;
   }
   // Persistence: carry the memory to this frame along the flow (backward lookup, first order),

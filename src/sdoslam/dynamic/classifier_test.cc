@@ -118,6 +118,7 @@ TEST(SdoClassifier, WithoutDepthOrderTheWallWouldBeTakenToo) {
   Scene s;
   SdoClassifierOptions o = ExactOptions();
   o.min_in_front = 0.0;
+  o.min_in_front_of_outline = 0.0;
   o.max_segment_area = 1.0;
   SdoClassifier classifier(o);
   const SdoResult r =
@@ -126,6 +127,29 @@ TEST(SdoClassifier, WithoutDepthOrderTheWallWouldBeTakenToo) {
   // The wall's outline rings A and B (image borders are not outline); B's ring is ~45 % of it.
   EXPECT_EQ(r.segment_labels[0], kMovingUnknown);
   EXPECT_EQ(r.segment_labels[1], kStatic);
+}
+
+// B cut into three parts at one depth (creases, as the geometric segmenter cuts a body at the
+// neck and waist): the middle part (segment 2, 24 of B's 36 rows) occludes the wall along its
+// sides only, 40 % of its outline with depth; the rest is the cuts. All three are taken;
+// demanding the nearer side along half of all the outline (min_in_front_of_outline =
+// min_in_front, the rule before the geometric segmenter) leaves the middle out.
+TEST(SdoClassifier, AnObjectCutIntoPartsAtOneDepthIsTakenWhole) {
+  Scene s;
+  s.segments.labels(cv::Rect(s.b.x, s.b.y, s.b.width, 6)).setTo(3);
+  s.segments.labels(cv::Rect(s.b.x, s.b.y + 30, s.b.width, 6)).setTo(4);
+  s.segments.count = 5;
+  SdoClassifier classifier(ExactOptions());
+  const SdoResult r =
+      classifier.Classify(s.segments, {}, s.OutlineOf(s.b), cv::Mat(), s.depth, {160, 120});
+  EXPECT_EQ(r.segment_labels, (std::vector<uint8_t>{kStatic, kStatic, kMovingUnknown,
+                                                    kMovingUnknown, kMovingUnknown}));
+  SdoClassifierOptions strict = ExactOptions();
+  strict.min_in_front_of_outline = strict.min_in_front;
+  const SdoResult t = SdoClassifier(strict).Classify(s.segments, {}, s.OutlineOf(s.b), cv::Mat(),
+                                                     s.depth, {160, 120});
+  EXPECT_EQ(t.segment_labels,
+            (std::vector<uint8_t>{kStatic, kStatic, kStatic, kMovingUnknown, kMovingUnknown}));
 }
 
 TEST(SdoClassifier, SelectedObjectPersistsForTheConfiguredFramesThenLapses) {

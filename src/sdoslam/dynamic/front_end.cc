@@ -141,6 +141,7 @@ FrontEndOptions ReadFrontEndOptions(ConfigMap& root) {
     s->Read("boundary_band_px", &c.boundary_band_px);
     s->Read("min_outline_on_boundary", &c.min_outline_on_boundary);
     s->Read("min_in_front", &c.min_in_front);
+    s->Read("min_in_front_of_outline", &c.min_in_front_of_outline);
     s->Read("in_front_ratio", &c.in_front_ratio);
     s->Read("max_segment_area", &c.max_segment_area);
     s->Read("persistence_frames", &c.persistence_frames);
@@ -219,6 +220,7 @@ void WriteFrontEndOptions(const FrontEndOptions& o, YAML::Emitter* out) {
   kv("boundary_band_px", c.boundary_band_px);
   kv("min_outline_on_boundary", c.min_outline_on_boundary);
   kv("min_in_front", c.min_in_front);
+  kv("min_in_front_of_outline", c.min_in_front_of_outline);
   kv("in_front_ratio", c.in_front_ratio);
   kv("max_segment_area", c.max_segment_area);
   kv("persistence_frames", c.persistence_frames);
