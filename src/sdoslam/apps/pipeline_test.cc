@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <map>
 #include <opencv2/imgcodecs.hpp>
 #include <optional>
@@ -352,7 +353,8 @@ struct RealBackgroundResult {
 // A scenario rendered into the real desk clip, played forward and back (99 frames), run in the
 // given modes; nullopt when the shared data is absent.
 std::optional<RealBackgroundResult> RunOverTheRealDesk(const std::string& scenario,
-                                                       const std::vector<RunMode>& modes) {
+                                                       const std::vector<RunMode>& modes,
+                                                       uint32_t seed = 1) {
   const auto desk = testing::SharedDir() / "data" / "tum_fr2_desk_50";
   if (!std::filesystem::is_directory(desk)) return std::nullopt;
   testing::TempDir dir;
@@ -361,6 +363,7 @@ std::optional<RealBackgroundResult> RunOverTheRealDesk(const std::string& scenar
   options.camera = LoadCameraConfig(testing::SourceDir() / "configs" / "tum_fr2.yaml");
   options.scenario = scenario;
   options.forward_backward = true;
+  options.seed = seed;
   synth::WriteBackgroundSequence(options, dir / "seq");
   RunOptions run;
   run.dataset = dir / "seq";
@@ -412,9 +415,27 @@ TEST(PipelineRealBackground, ABoxCarriedWithTheCameraDoesNotCaptureThePose) {
 // the view for long stretches. With the graph segmenter, segments crossed the objects' outlines
 // and the check reverted to the dragged pose whenever it left fewer than tracking's 30 inliers
 // (50 mm, 8 frames lost); segments that stop at depth edges and concave creases, and a check
-// that keeps its static set down to 15 inliers, hold the oracle's bar.
+// that keeps its static set down to 15 inliers, brought it near the oracle on one noise seed.
+// On others it was 11-19 mm: in a few frames the check, started from a pose the movers had
+// pulled, took most of the room out. One seed decides nothing here, so three are run and their
+// median is held to the bar; every frame of every seed must be tracked.
 TEST(PipelineRealBackground, TheBoxASwingingBoxAndAPersonAtOnceDoNotCaptureThePose) {
-  ExpectTheOracleBarAndUnknownMasks("mixed");
+  std::vector<double> sdo, oracle;
+  for (uint32_t seed : {1u, 2u, 3u}) {
+    const auto r = RunOverTheRealDesk("mixed", {RunMode::kOracle, RunMode::kSdo}, seed);
+    if (!r) GTEST_SKIP() << "tum_fr2_desk_50 absent";
+    EXPECT_EQ(r->tracked.at(RunMode::kSdo), 99u) << "seed " << seed;
+    sdo.push_back(r->ate.at(RunMode::kSdo));
+    oracle.push_back(r->ate.at(RunMode::kOracle));
+    ASSERT_EQ(r->sdo_masks.per_class.count("unknown"), 1u);
+    EXPECT_GE(r->sdo_masks.per_class.at("unknown").Iou(), 0.6) << "seed " << seed;
+  }
+  std::sort(sdo.begin(), sdo.end());
+  std::sort(oracle.begin(), oracle.end());
+  EXPECT_LE(sdo[1], 1.3 * oracle[1] + 0.002)
+      << "median sdo " << sdo[1] << " median oracle " << oracle[1] << "; worst sdo " << sdo[2];
+  // No seed may fall apart.
+  EXPECT_LE(sdo[2], 3 * oracle[1] + 0.002) << "worst sdo " << sdo[2];
 }
 
 }  // namespace

@@ -20,6 +20,10 @@ void SceneFlowOptions::Check() const {
   if (min_segment_features < 1) throw Error("consistency.min_segment_features must be >= 1");
   if (max_iterations < 1) throw Error("consistency.max_iterations must be >= 1");
   if (min_inliers_kept < 6) throw Error("consistency.min_inliers_kept must be >= 6");
+  if (!(min_established_kept >= 0 && min_established_kept <= 1))
+    throw Error("consistency.min_established_kept must be in [0, 1]");
+  if (established_observations < 1)
+    throw Error("consistency.established_observations must be >= 1");
   if (track_window < 5 || track_window % 2 == 0)
     throw Error("consistency.track_window must be odd and >= 5");
   if (track_levels < 0 || track_levels > 6)

@@ -193,6 +193,15 @@ TEST(SceneFlowOptions, CheckRejectsNonsense) {
   o = SceneFlowOptions{};
   o.frame_gap = 0;
   EXPECT_THROW(o.Check(), std::exception);
+  o = SceneFlowOptions{};
+  o.min_established_kept = 1.5;
+  EXPECT_THROW(o.Check(), std::exception);
+  o = SceneFlowOptions{};
+  o.established_observations = 0;
+  EXPECT_THROW(o.Check(), std::exception);
+  o = SceneFlowOptions{};
+  o.static_motion.min_extra_samples = -1;
+  EXPECT_THROW(o.Check(), std::exception);
 }
 
 }  // namespace

@@ -18,6 +18,8 @@ void StaticMotionOptions::Check() const {
   if (hypotheses < 1) throw Error("consistency.static_motion_hypotheses must be >= 1");
   if (!(inlier_px > 0)) throw Error("consistency.static_motion_inlier_px must be positive");
   if (!(min_gain >= 0)) throw Error("consistency.static_motion_min_gain must be >= 0");
+  if (min_extra_samples < 0)
+    throw Error("consistency.static_motion_min_extra_samples must be >= 0");
   if (min_correspondences < 3)
     throw Error("consistency.static_motion_min_correspondences must be >= 3");
 }
@@ -91,12 +93,16 @@ StaticMotionResult FindStaticMotion(const StaticMotionOptions& options, const Pi
   StaticMotionResult result;
   result.T_camera_world = rough;
   result.rough_inliers = result.inliers = CountMotionInliers(options, k, matches, rough);
+  // Whether `inliers` explain clearly more than the rough pose does.
+  const auto clearly_more = [&](double inliers) {
+    return inliers > (1.0 + options.min_gain) * result.rough_inliers &&
+           inliers >= result.rough_inliers + options.min_extra_samples;
+  };
   if (!options.enabled || static_cast<int>(matches.size()) < options.min_correspondences)
     return result;
   // No motion can explain more than all samples: where the rough pose already explains so many
   // that the gain is out of reach, it stays (most frames of a static scene end here).
-  if ((1.0 + options.min_gain) * result.rough_inliers >= static_cast<double>(matches.size()))
-    return result;
+  if (!clearly_more(static_cast<double>(matches.size()))) return result;
 
   std::mt19937 random(options.seed);
   std::uniform_int_distribution<size_t> pick(0, matches.size() - 1);
@@ -128,7 +134,7 @@ StaticMotionResult FindStaticMotion(const StaticMotionOptions& options, const Pi
     best_inliers = inliers;
     best = T;
   }
-  if (best_inliers <= (1.0 + options.min_gain) * result.rough_inliers) return result;
+  if (!clearly_more(best_inliers)) return result;
   // Refine on the inliers by their reprojection error (the depth of a sample is noisier than
   // its position), twice: the inlier set grows as the pose settles.
   const double limit2 = options.inlier_px * options.inlier_px;
@@ -152,7 +158,7 @@ StaticMotionResult FindStaticMotion(const StaticMotionOptions& options, const Pi
     best = refined;
     best_inliers = inliers;
   }
-  if (best_inliers <= (1.0 + options.min_gain) * result.rough_inliers) return result;
+  if (!clearly_more(best_inliers)) return result;
   result.replaced = true;
   result.T_camera_world = best;
   result.inliers = best_inliers;

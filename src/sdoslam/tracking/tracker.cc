@@ -435,6 +435,14 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
   }
   if (past == nullptr) return {};
   const Camera& camera = frame.geometry->camera;
+  // Tracking's pose and how many established landmarks it keeps as inliers.
+  const Eigen::Isometry3d tracking_pose = frame.T_camera_world;
+  int rough_established = 0;
+  for (size_t i = 0; i < frame.size(); ++i) {
+    const MapPoint* p = frame.map_points[i];
+    rough_established += p != nullptr && !p->bad && !frame.outlier[i] &&
+                         static_cast<int>(p->observations.size()) >= o.established_observations;
+  }
 
   // Candidates: the features still taken as static. Those with depth get a correspondence in the
   // past frame by Lucas–Kanade, and both ends become landmarks from depth.
@@ -504,7 +512,12 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
 
   // Start from the static world's motion, not the majority's (static_motion.h): a grid of
   // corner samples, one per textured cell, tracked back into the past frame like the features.
+  // The samples also vote in the segment rule below (sample_votes): ORB features crowd on
+  // strong texture and leave plainer objects with too few to judge, a cell's corner stands
+  // for its area.
   std::vector<uint8_t> off_static_motion(n, 0);
+  std::vector<Ends> sample_ends;
+  std::vector<int> sample_segment;
   if (o.static_motion.enabled) {
     const StaticMotionOptions& so = o.static_motion;
     const std::vector<cv::Point2f> samples = GridCorners(so, input.gray, input.depth);
@@ -522,6 +535,7 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
                     &sample_guesses);
     const std::vector<cv::Point2f> sample_past_undistorted = camera.UndistortPoints(sample_past);
     std::vector<MotionCorrespondence> correspondences;
+    std::vector<cv::Point2f> sample_points;  // those that vote, in sample_ends' order
     for (size_t s = 0; s < samples.size(); ++s) {
       if (!sample_found[s]) continue;
       const int u = static_cast<int>(std::lround(sample_past[s].x));
@@ -536,7 +550,22 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
                                                                   sample_past_undistorted[s].y},
                                                                  past_depth),
                                  camera.Unproject(pixel, z), pixel});
+      if (o.sample_votes) {
+        Ends e;
+        e.past_depths = DepthCandidates(past->depth, sample_past[s], r);
+        e.current_depths = DepthCandidates(input.depth, samples[s], r);
+        if (e.past_depths.empty() || e.current_depths.empty()) continue;
+        e.past_origin = T_world_past.translation();
+        e.past_direction =
+            T_world_past.linear() *
+            camera.Unproject({sample_past_undistorted[s].x, sample_past_undistorted[s].y}, 1);
+        e.current_direction = camera.Unproject(pixel, 1);
+        sample_ends.push_back(std::move(e));
+        sample_points.push_back(samples[s]);
+      }
     }
+    sample_segment =
+        SegmentsAt(input.segments, cv::Size(camera.width(), camera.height()), sample_points);
     const StaticMotionResult widest =
         FindStaticMotion(so, frame.geometry->intrinsics, correspondences, frame.T_camera_world);
     result->check_rough_samples = widest.rough_inliers;
@@ -575,33 +604,39 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
   const Eigen::Isometry3d rough_pose = frame.T_camera_world;
   std::vector<uint8_t> dynamic(n, 0), exceeds(n, 0), segment_dynamic;
   const std::vector<uint8_t> large_segments = LargeSegments(input.segments, o.max_segment_area);
+  // Features first, then the voting samples: one list for the segment rule.
+  std::vector<uint8_t> voter_measured = measured, voter_exceeds(n + sample_ends.size(), 0);
+  voter_measured.resize(n + sample_ends.size(), 1);
+  std::vector<int> voter_segment = segment;
+  voter_segment.insert(voter_segment.end(), sample_segment.begin(), sample_segment.end());
   for (int iteration = 1; iteration <= o.max_iterations; ++iteration) {
     result->check_iterations = iteration;
     const Eigen::Isometry3d T_world_camera = frame.T_camera_world.inverse();
     const Eigen::Vector3d centre = T_world_camera.translation();
-    for (size_t k = 0; k < n; ++k) {
-      if (!measured[k]) continue;
-      // Moving only when no pair of the ends' depths explains the feature as static.
-      const Ends& e = ends[k];
+    // Moving only when no pair of the ends' depths explains the point as static.
+    auto all_exceed = [&](const Ends& e) {
       const Eigen::Vector3d direction = T_world_camera.linear() * e.current_direction;
-      bool all_exceed = true;
       for (float dc : e.current_depths) {
         const Eigen::Vector3d point = centre + dc * direction;
         for (float dp : e.past_depths) {
           const Eigen::Vector3d flow = point - (e.past_origin + dp * e.past_direction);
-          if (!ExceedsSceneFlowThreshold(o, flow, point, centre, dc,
-                                         frame.geometry->intrinsics.fx)) {
-            all_exceed = false;
-            break;
-          }
+          if (!ExceedsSceneFlowThreshold(o, flow, point, centre, dc, frame.geometry->intrinsics.fx))
+            return false;
         }
-        if (!all_exceed) break;
       }
-      exceeds[k] = all_exceed || off_static_motion[k];
+      return true;
+    };
+    for (size_t k = 0; k < n; ++k) {
+      if (measured[k]) exceeds[k] = all_exceed(ends[k]) || off_static_motion[k];
     }
+    for (size_t k = 0; k < n; ++k) voter_exceeds[k] = exceeds[k];
+    for (size_t v = 0; v < sample_ends.size(); ++v)
+      voter_exceeds[n + v] = all_exceed(sample_ends[v]);
     std::vector<uint8_t> segments_now;
-    std::vector<uint8_t> next = ClassifyBySceneFlow(
-        o, measured, exceeds, segment, input.locked_segments, large_segments, &segments_now);
+    std::vector<uint8_t> next =
+        ClassifyBySceneFlow(o, voter_measured, voter_exceeds, voter_segment, input.locked_segments,
+                            large_segments, &segments_now);
+    next.resize(n);  // the samples' own verdicts are not features'
     segment_dynamic.resize(std::max(segment_dynamic.size(), segments_now.size()), 0);
     for (size_t s = 0; s < segments_now.size(); ++s) segment_dynamic[s] |= segments_now[s];
     // A feature once judged dynamic stays so within the frame: the set only grows, so it
@@ -620,16 +655,23 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
     OptimizeAndCount(frame);
   }
 
-  int inliers = 0;
+  int inliers = 0, established = 0;
   for (size_t i = 0; i < frame.size(); ++i) {
     const MapPoint* p = frame.map_points[i];
-    inliers += p != nullptr && !p->bad && !frame.outlier[i] && !p->observations.empty();
+    const bool inlier = p != nullptr && !p->bad && !frame.outlier[i] && !p->observations.empty();
+    inliers += inlier;
+    established += inlier && static_cast<int>(p->observations.size()) >= o.established_observations;
   }
-  if (inliers < o.min_inliers_kept) {
-    // Too little would be left to track: keep the rough estimate rather than lose the camera.
+  // The map's hypothesis: landmarks that several keyframes agree on. A check that keeps only a
+  // small share of those the rough pose kept has overturned the map on one frame's evidence.
+  const bool overturns_map = o.min_established_kept > 0 && rough_established > 0 &&
+                             established < o.min_established_kept * rough_established;
+  if (inliers < o.min_inliers_kept || overturns_map) {
+    // Too little would be left to track, or the map disagrees: keep the rough estimate rather
+    // than lose the camera.
     frame.map_points = matched;
     frame.outlier = rough_outlier;
-    frame.T_camera_world = rough_pose;
+    frame.T_camera_world = overturns_map ? tracking_pose : rough_pose;
     result->check_reverted = true;
     return {};
   }
