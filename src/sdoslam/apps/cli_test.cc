@@ -3,6 +3,7 @@
 
 #include <array>
 #include <cstdio>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
@@ -117,6 +118,36 @@ TEST(CliEvalErrors, BadInputEndsInOneClearMessage) {
                  (dir_ / "empty.txt").string());
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.output.find("no poses"), std::string::npos) << r.output;
+
+  r = RunSdoslam("eval --no-plots --rte-pairing nearest --gt " + gt_.string() + " --est " +
+                 gt_.string());
+  EXPECT_EQ(r.exit_code, 2);  // usage: the command line itself
+  EXPECT_NE(r.output.find("--rte-pairing"), std::string::npos) << r.output;
+}
+
+// The RTE pairing is chosen on the command line and recorded in the JSON.
+TEST(CliEvalPairing, RtePairingIsAnOptionAndRecorded) {
+  testing::TempDir dir;
+  std::string gt_text, est_text;
+  for (int k = 0; k < 90; ++k) {
+    const double t = 100 + k / 30.0;
+    char line[96];
+    std::snprintf(line, sizeof line, "%.6f %.6f 0 0 0 0 0 1\n", t, t - 100);
+    gt_text += line;
+    std::snprintf(line, sizeof line, "%.6f %.6f 0 0 0 0 0 1\n", t, 1.1 * (t - 100));
+    if (k < 20 || k > 40) est_text += line;  // lost in between
+  }
+  testing::WriteText(dir / "gt.txt", gt_text);
+  testing::WriteText(dir / "est.txt", est_text);
+  for (const std::string pairing : {"tum", "strict"}) {
+    const auto json = dir / (pairing + ".json");
+    const Result r = RunSdoslam("eval --no-plots --rte-pairing " + pairing + " --gt " +
+                                (dir / "gt.txt").string() + " --est " + (dir / "est.txt").string() +
+                                " --json " + json.string());
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    std::ifstream in(json);
+    EXPECT_EQ(nlohmann::json::parse(in).at("rte_pairing"), pairing);
+  }
 }
 
 TEST(CliDemo, RunsWithoutDataAndPrintsResults) {

@@ -24,6 +24,7 @@ struct EvalArgs {
   double time_offset = 0.0;
   double delta = 1.0;
   std::string delta_unit = "s";
+  std::string rte_pairing = "tum";
   std::string json;
   std::string plot_dir = "eval_plots";
   bool no_plots = false;
@@ -49,6 +50,7 @@ void RunEval(const EvalArgs& args) {
   options.ate.time_offset = args.time_offset;
   options.rte.delta = args.delta;
   options.rte.unit = ParseDeltaUnit(args.delta_unit);
+  options.rte.pairing = ParseRtePairing(args.rte_pairing);
   options.plane = args.plane;
   options.Check();
   if (!args.labels.empty() && args.labels.size() != args.estimates.size()) {
@@ -113,6 +115,11 @@ void AddEvalCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--delta-unit", args->delta_unit, "unit of --delta: s or frames")
       ->check(CLI::IsMember({"s", "frames"}))
+      ->capture_default_str();
+  cmd->add_option("--rte-pairing", args->rte_pairing,
+                  "tum: pair poses as TUM's evaluate_rpe.py --fixed_delta (what papers report); "
+                  "strict: only poses within half a frame of t + delta")
+      ->check(CLI::IsMember({"tum", "strict"}))
       ->capture_default_str();
   cmd->add_option("--json", args->json, "also write the results as JSON to this file");
   cmd->add_option("--plot-dir", args->plot_dir, "folder for the PNG/SVG plots")

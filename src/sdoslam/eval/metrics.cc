@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <numeric>
@@ -143,24 +144,65 @@ DeltaUnit ParseDeltaUnit(const std::string& name) {
   throw Error("unknown delta unit '" + name + "' (use frames or s)");
 }
 
-void RteOptions::Check() const {
-  if (!(delta > 0) || !std::isfinite(delta)) throw Error("delta must be positive");
-  if (unit == DeltaUnit::kFrames && delta != std::floor(delta)) {
-    throw Error("delta in frames must be a whole number");
-  }
-  if (!(scale > 0) || !std::isfinite(scale)) throw Error("scale must be positive");
-  AteOptions{max_time_difference, time_offset, AlignmentMode::kSE3}.Check();
+RtePairing ParseRtePairing(const std::string& name) {
+  if (name == "tum") return RtePairing::kTum;
+  if (name == "strict") return RtePairing::kStrict;
+  throw Error("unknown RTE pairing '" + name + "' (use tum or strict)");
 }
 
-RteResult ComputeRte(const Trajectory& ground_truth, const Trajectory& estimate,
-                     const RteOptions& options) {
-  options.Check();
-  const TrajectoryMatch match =
-      MatchTrajectories(ground_truth, estimate, options.max_time_difference, options.time_offset);
+const char* ToString(RtePairing pairing) { return pairing == RtePairing::kTum ? "tum" : "strict"; }
+
+namespace {
+
+// Index of the value in sorted `values` closest to `target` (the earlier one on a tie).
+size_t ClosestIndex(const std::vector<double>& values, double target) {
+  const size_t hi =
+      static_cast<size_t>(std::lower_bound(values.begin(), values.end(), target) - values.begin());
+  if (hi == values.size()) return hi - 1;
+  if (hi > 0 && target - values[hi - 1] <= values[hi] - target) return hi - 1;
+  return hi;
+}
+
+// Pairs (estimate index, estimate index) and their ground-truth indices as TUM's
+// evaluate_rpe.py --fixed_delta forms them.
+struct TumPairs {
+  std::vector<std::array<size_t, 4>> pairs;  // est i, est j, gt i, gt j
+};
+
+TumPairs PairAsTum(const Trajectory& ground_truth, const Trajectory& estimate,
+                   const RteOptions& options) {
+  TumPairs out;
+  const size_t n = estimate.size();
+  std::vector<double> est_times(n), gt_times(ground_truth.size()), gt_intervals;
+  for (size_t k = 0; k < n; ++k) est_times[k] = estimate[k].timestamp;
+  for (size_t k = 0; k < ground_truth.size(); ++k) gt_times[k] = ground_truth[k].timestamp;
+  for (size_t k = 1; k < gt_times.size(); ++k)
+    gt_intervals.push_back(gt_times[k] - gt_times[k - 1]);
+  if (n < 2 || gt_intervals.empty()) return out;
+  const double gt_tolerance = 2 * ComputeErrorStats(gt_intervals).median;
+  for (size_t i = 0; i < n; ++i) {
+    size_t j = 0;
+    if (options.unit == DeltaUnit::kFrames) {
+      j = std::min(i + static_cast<size_t>(options.delta), n - 1);
+    } else {
+      j = ClosestIndex(est_times, est_times[i] + options.delta);
+    }
+    if (j == n - 1) continue;  // the script never pairs with the last pose
+    const double ti = est_times[i] + options.time_offset, tj = est_times[j] + options.time_offset;
+    const size_t gi = ClosestIndex(gt_times, ti), gj = ClosestIndex(gt_times, tj);
+    if (std::abs(gt_times[gi] - ti) > gt_tolerance || std::abs(gt_times[gj] - tj) > gt_tolerance)
+      continue;
+    out.pairs.push_back({i, j, gi, gj});
+  }
+  return out;
+}
+
+// The strict pairing over matched poses (indices into `match`).
+std::vector<std::pair<size_t, size_t>> StrictPairs(const TrajectoryMatch& match,
+                                                   const Trajectory& estimate,
+                                                   const RteOptions& options) {
   const size_t n = match.size();
   auto est_pose = [&](size_t k) { return estimate[match.estimate_index[k]]; };
-  auto gt_pose = [&](size_t k) { return ground_truth[match.ground_truth_index[k]]; };
-
   std::vector<std::pair<size_t, size_t>> pairs;
   if (options.unit == DeltaUnit::kFrames) {
     const size_t delta = static_cast<size_t>(options.delta);
@@ -179,6 +221,37 @@ RteResult ComputeRte(const Trajectory& ground_truth, const Trajectory& estimate,
       if (j > i && std::abs(times[j] - target) <= tolerance) pairs.emplace_back(i, j);
     }
   }
+  return pairs;
+}
+
+}  // namespace
+
+void RteOptions::Check() const {
+  if (!(delta > 0) || !std::isfinite(delta)) throw Error("delta must be positive");
+  if (unit == DeltaUnit::kFrames && delta != std::floor(delta)) {
+    throw Error("delta in frames must be a whole number");
+  }
+  if (!(scale > 0) || !std::isfinite(scale)) throw Error("scale must be positive");
+  AteOptions{max_time_difference, time_offset, AlignmentMode::kSE3}.Check();
+}
+
+RteResult ComputeRte(const Trajectory& ground_truth, const Trajectory& estimate,
+                     const RteOptions& options) {
+  options.Check();
+  // Overlap and at least three matches are required in both pairings: a trajectory that does
+  // not overlap the ground truth is an error, not an empty result.
+  const TrajectoryMatch match =
+      MatchTrajectories(ground_truth, estimate, options.max_time_difference, options.time_offset);
+  // Pairs as indices into `estimate` and `ground_truth`: start and end of each.
+  std::vector<std::array<size_t, 4>> pairs;
+  if (options.pairing == RtePairing::kTum) {
+    pairs = PairAsTum(ground_truth, estimate, options).pairs;
+  } else {
+    for (const auto& [i, j] : StrictPairs(match, estimate, options)) {
+      pairs.push_back({match.estimate_index[i], match.estimate_index[j],
+                       match.ground_truth_index[i], match.ground_truth_index[j]});
+    }
+  }
   if (pairs.empty()) {
     throw Error("no pose pairs " + std::to_string(options.delta) +
                 (options.unit == DeltaUnit::kFrames ? " frames" : " s") +
@@ -186,14 +259,14 @@ RteResult ComputeRte(const Trajectory& ground_truth, const Trajectory& estimate,
   }
 
   RteResult result;
-  for (const auto& [i, j] : pairs) {
+  for (const auto& [ei, ej, gi, gj] : pairs) {
     Eigen::Isometry3d est_motion =
-        est_pose(i).T_world_camera.inverse() * est_pose(j).T_world_camera;
+        estimate[ei].T_world_camera.inverse() * estimate[ej].T_world_camera;
     est_motion.translation() *= options.scale;
     const Eigen::Isometry3d gt_motion =
-        gt_pose(i).T_world_camera.inverse() * gt_pose(j).T_world_camera;
+        ground_truth[gi].T_world_camera.inverse() * ground_truth[gj].T_world_camera;
     const Eigen::Isometry3d error = est_motion.inverse() * gt_motion;
-    result.timestamps.push_back(est_pose(i).timestamp);
+    result.timestamps.push_back(estimate[ei].timestamp);
     result.translation_errors.push_back(error.translation().norm());
     // AngleAxis is accurate for small angles, where arccos((tr R − 1)/2) loses digits.
     result.rotation_errors_deg.push_back(Eigen::AngleAxisd(error.rotation()).angle() * 180.0 /

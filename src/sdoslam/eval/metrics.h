@@ -72,9 +72,24 @@ AteResult ComputeAte(const Trajectory& ground_truth, const Trajectory& estimate,
 enum class DeltaUnit { kFrames, kSeconds };
 DeltaUnit ParseDeltaUnit(const std::string& name);  // frames | f | s | seconds
 
+// How RTE pairs poses Δ apart.
+enum class RtePairing {
+  // As TUM's evaluate_rpe.py --fixed_delta, whose numbers papers report: every estimate pose i
+  // is paired with the estimate pose closest to tᵢ + Δ (frames: index i + Δ), whatever the gap,
+  // unless that is the last pose; each end takes the ground-truth pose closest in time, and a
+  // pair is dropped when either is more than twice the median ground-truth interval away.
+  kTum,
+  // Only matched poses (max_time_difference), and a partner only within half the median frame
+  // interval of tᵢ + Δ: a gap in the estimate never stretches or shrinks Δ.
+  kStrict,
+};
+RtePairing ParseRtePairing(const std::string& name);  // tum | strict
+const char* ToString(RtePairing pairing);
+
 struct RteOptions {
   double delta = 1.0;  // the paper uses one second
   DeltaUnit unit = DeltaUnit::kSeconds;
+  RtePairing pairing = RtePairing::kTum;
   double max_time_difference = 0.02;
   double time_offset = 0.0;
   double scale = 1.0;  // applied to the estimate's relative translations (from a sim3 alignment)
@@ -89,11 +104,9 @@ struct RteResult {
 };
 
 // Relative pose error over a fixed interval Δ (TUM evaluate_rpe with a fixed delta, the paper's
-// eq. 12): for each matched pose k with a partner k+Δ, E = (T̂ₖ⁻¹T̂ₖ₊Δ)⁻¹(Tₖ⁻¹Tₖ₊Δ); statistics
-// of ‖trans(E)‖ and of the rotation angle of E. All pairs are used (no random subsampling).
-// With Δ in seconds the partner is the matched pose closest to tₖ + Δ, accepted when within
-// half the median frame interval (so a gap in the estimate never stretches Δ).
-// Throws Error when no pair exists.
+// eq. 12): for each pose k with a partner k+Δ (options.pairing), E = (T̂ₖ⁻¹T̂ₖ₊Δ)⁻¹(Tₖ⁻¹Tₖ₊Δ);
+// statistics of ‖trans(E)‖ and of the rotation angle of E. All pairs are used (the TUM script
+// samples 10,000 at random when there are more). Throws Error when no pair exists.
 RteResult ComputeRte(const Trajectory& ground_truth, const Trajectory& estimate,
                      const RteOptions& options = {});
 

@@ -190,17 +190,25 @@ TEST(Rte, ScaleDriftGivesKnownTranslationError) {
     gt.push_back(Pose(t, {t, 0, 0}));
     est.push_back(Pose(t, {1.1 * t, 0, 0}));
   }
-  const RteResult seconds = ComputeRte(gt, est);
+  RteOptions strict;
+  strict.pairing = RtePairing::kStrict;
+  const RteResult seconds = ComputeRte(gt, est, strict);
   EXPECT_EQ(seconds.translation.count, 61u);  // k = 0..60 have a partner 30 frames later
   EXPECT_NEAR(seconds.translation.rmse, 0.1, 1e-9);
   EXPECT_NEAR(seconds.translation.std, 0.0, 1e-9);
   EXPECT_NEAR(seconds.rotation.rmse, 0.0, 1e-9);
-  RteOptions frames;
+  RteOptions frames = strict;
   frames.unit = DeltaUnit::kFrames;
   frames.delta = 30;
   const RteResult by_frames = ComputeRte(gt, est, frames);
   EXPECT_EQ(by_frames.translation.count, 61u);
   EXPECT_NEAR(by_frames.translation.rmse, 0.1, 1e-9);
+  // TUM's script never pairs with the last pose: k = 60 → 90 is left out, in both units.
+  const RteResult tum = ComputeRte(gt, est);
+  EXPECT_EQ(tum.translation.count, 60u);
+  EXPECT_NEAR(tum.translation.rmse, 0.1, 1e-9);
+  frames.pairing = RtePairing::kTum;
+  EXPECT_EQ(ComputeRte(gt, est, frames).translation.count, 60u);
   RteOptions rescaled;
   rescaled.scale = 1.0 / 1.1;
   EXPECT_NEAR(ComputeRte(gt, est, rescaled).translation.rmse, 0.0, 1e-9);
@@ -219,7 +227,9 @@ TEST(Rte, RotationRateErrorGivesKnownAngleAndIgnoresGlobalFrame) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.linear() = Eigen::AngleAxisd(2.0, Eigen::Vector3d(1, 1, 0).normalized()).toRotationMatrix();
   T.translation() = Eigen::Vector3d(-7, 1, 0);
-  const RteResult rte = ComputeRte(gt, Transformed(est, T));
+  RteOptions strict;
+  strict.pairing = RtePairing::kStrict;
+  const RteResult rte = ComputeRte(gt, Transformed(est, T), strict);
   EXPECT_EQ(rte.rotation.count, 30u);
   EXPECT_NEAR(rte.rotation.rmse, 0.05 * 180.0 / M_PI, 1e-9);
   EXPECT_NEAR(rte.translation.rmse, 0.0, 1e-9);
@@ -232,10 +242,53 @@ TEST(Rte, GapInTheEstimateDoesNotStretchDelta) {
     gt.push_back(Pose(t, {t, 0, 0}));
     if (k < 30 || k >= 90) est.push_back(Pose(t, {t, 0, 0}));  // lost for 2 s
   }
-  const RteResult rte = ComputeRte(gt, est);
+  RteOptions strict;
+  strict.pairing = RtePairing::kStrict;
+  const RteResult rte = ComputeRte(gt, est, strict);
   // Pairs exist only within the second block (k = 90..119 → +30).
   EXPECT_EQ(rte.translation.count, 30u);
   for (double t : rte.timestamps) EXPECT_GE(t, 3.0 - 1e-9);
+}
+
+// Six estimate poses with uneven gaps, worked by hand (Δ = 1 s). Ground truth moves along x at
+// 1 m/s, the estimate at 1.1 m/s, so a pair's error is 0.1 · (tⱼ − tᵢ).
+//   TUM: t = 0 → 1.0, 0.5 → 1.5, 1.0 → 1.5 (closest to 2.0), 1.5 → 2.6; 2.6 and 3.0 would
+//   pair with the last pose and are dropped. Errors 0.1, 0.1, 0.05, 0.11.
+//   Strict (tolerance half the median interval, 0.25 s): 0 → 1.0, 0.5 → 1.5, 1.5 → 2.6.
+TEST(Rte, PairsAsTheTumScriptDoesByDefaultAndStrictlyOnRequest) {
+  Trajectory gt, est;
+  for (int k = 0; k <= 400; ++k) gt.push_back(Pose(k / 100.0, {k / 100.0, 0, 0}));
+  for (double t : {0.0, 0.5, 1.0, 1.5, 2.6, 3.0}) est.push_back(Pose(t, {1.1 * t, 0, 0}));
+  const RteResult tum = ComputeRte(gt, est);
+  ASSERT_EQ(tum.translation.count, 4u);
+  EXPECT_NEAR(tum.translation.rmse, std::sqrt((0.01 + 0.01 + 0.0025 + 0.0121) / 4), 1e-9);
+  EXPECT_EQ(tum.timestamps, (std::vector<double>{0.0, 0.5, 1.0, 1.5}));
+  RteOptions strict;
+  strict.pairing = RtePairing::kStrict;
+  const RteResult s = ComputeRte(gt, est, strict);
+  ASSERT_EQ(s.translation.count, 3u);
+  EXPECT_NEAR(s.translation.rmse, std::sqrt((0.01 + 0.01 + 0.0121) / 3), 1e-9);
+  EXPECT_EQ(ParseRtePairing("strict"), RtePairing::kStrict);
+  EXPECT_THROW(ParseRtePairing("nearest"), Error);
+}
+
+// TUM: a pair whose ground truth lies more than twice the median ground-truth interval from
+// either end is dropped (the mocap lost the marker).
+TEST(Rte, TumPairingDropsPairsWithoutGroundTruthNearby) {
+  Trajectory gt, est;
+  for (int k = 0; k < 300; ++k) {
+    const double t = k / 100.0;
+    if (t < 1.2 || t > 1.6) gt.push_back(Pose(t, {t, 0, 0}));  // no ground truth 1.2–1.6 s
+  }
+  for (int k = 0; k < 90; ++k) est.push_back(Pose(k / 30.0, {k / 30.0, 0, 0}));
+  const RteResult r = ComputeRte(gt, est);
+  for (double t : r.timestamps) {
+    EXPECT_FALSE(t > 1.22 && t < 1.58) << t;          // start without ground truth
+    EXPECT_FALSE(t + 1 > 1.22 && t + 1 < 1.58) << t;  // end without ground truth
+  }
+  EXPECT_GT(r.translation.count, 20u);
+  // Each end takes the nearest ground truth, no interpolation (as the script): within 2 cm here.
+  EXPECT_LT(r.translation.max, 0.02 + 1e-9);
 }
 
 TEST(Rte, BadOptionsAndTooShortRuns) {

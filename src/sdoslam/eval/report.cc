@@ -141,6 +141,7 @@ nlohmann::json ToJson(const std::vector<EstimateEvaluation>& evaluations,
           {"time_offset", options.ate.time_offset},
           {"rte_delta", options.rte.delta},
           {"rte_delta_unit", options.rte.unit == DeltaUnit::kFrames ? "frames" : "s"},
+          {"rte_pairing", ToString(options.rte.pairing)},
           {"estimates", estimates}};
 }
 
