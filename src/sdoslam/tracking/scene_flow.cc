@@ -10,6 +10,8 @@ namespace sdoslam {
 
 void SceneFlowOptions::Check() const {
   if (frame_gap < 1) throw Error("consistency.frame_gap must be >= 1");
+  if (retry_gap < 0 || (retry_gap > 0 && retry_gap >= frame_gap))
+    throw Error("consistency.retry_gap must be 0 or in [1, frame_gap - 1]");
   if (!(min_flow >= 0)) throw Error("consistency.min_flow must be >= 0");
   if (!(noise_sigmas > 0)) throw Error("consistency.noise_sigmas must be positive");
   if (!(depth_noise_a >= 0) || !(depth_noise_b >= 0))

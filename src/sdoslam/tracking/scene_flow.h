@@ -18,6 +18,9 @@ struct SceneFlowOptions {
   // further than the noise; correspondences come from pyramidal Lucas–Kanade, which follows a
   // few frames of camera motion easily.
   int frame_gap = 5;
+  // Features that Lucas–Kanade cannot follow back frame_gap frames are tried again over this
+  // many frames (0: not retried; at most frame_gap − 1).
+  int retry_gap = 2;
   // A feature is dynamic when its scene flow exceeds, along the viewing ray,
   //   min_flow + noise_sigmas · √2 · σ_z(z),  σ_z(z) = depth_noise_a + depth_noise_b·(z − 0.4)²
   // (the Kinect's axial noise, Nguyen et al. 2012; √2: two depth readings), or across the ray
@@ -85,6 +88,7 @@ struct SceneFlowOptions {
   static void VisitFields(Options& o, Visitor&& visit) {
     visit("enabled", o.enabled);
     visit("frame_gap", o.frame_gap);
+    visit("retry_gap", o.retry_gap);
     visit("min_flow", o.min_flow);
     visit("noise_sigmas", o.noise_sigmas);
     visit("depth_noise_a", o.depth_noise_a);

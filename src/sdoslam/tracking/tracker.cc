@@ -451,19 +451,22 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
   std::vector<int> candidates;
   std::vector<cv::Point2f> tracked_points, guesses;
   std::vector<size_t> tracked_slot;
-  const Eigen::Isometry3d T_past_camera = past->T_camera_world * frame.T_camera_world.inverse();
-  // Where a static point seen at `pixel` (undistorted: `undistorted`) at `depth` was in the past
-  // frame at the rough pose; `pixel` itself when that falls outside the image.
-  auto where_static_was = [&](const cv::Point2f& pixel, const cv::Point2f& undistorted,
-                              double depth) {
-    const Eigen::Vector3d in_past =
-        T_past_camera * camera.Unproject({undistorted.x, undistorted.y}, depth);
+  // Where a static point seen at `pixel` (undistorted: `undistorted`) at `depth` was in a past
+  // frame (`earlier`) at the rough pose; `pixel` itself when that falls outside the image.
+  auto where_static_was_in = [&](const PastFrame& earlier, const cv::Point2f& pixel,
+                                 const cv::Point2f& undistorted, double depth) {
+    const Eigen::Vector3d in_past = earlier.T_camera_world * frame.T_camera_world.inverse() *
+                                    camera.Unproject({undistorted.x, undistorted.y}, depth);
     if (in_past.z() > 0) {
       const Eigen::Vector2d p = camera.Distort(camera.Project(in_past));
       if (p.x() >= 0 && p.y() >= 0 && p.x() < camera.width() && p.y() < camera.height())
         return cv::Point2f(static_cast<float>(p.x()), static_cast<float>(p.y()));
     }
     return pixel;
+  };
+  auto where_static_was = [&](const cv::Point2f& pixel, const cv::Point2f& undistorted,
+                              double depth) {
+    return where_static_was_in(*past, pixel, undistorted, depth);
   };
   for (size_t i = 0; i < frame.size(); ++i) {
     if (!frame.IsStatic(static_cast<int>(i))) continue;
@@ -503,6 +506,47 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
     e.past_direction =
         T_world_past.linear() * camera.Unproject({past_undistorted[t].x, past_undistorted[t].y}, 1);
     e.current_direction = camera.Unproject({frame.undistorted[i].x, frame.undistorted[i].y}, 1);
+  }
+  // Features Lucas–Kanade cannot follow back frame_gap frames: on movers most are (they turn,
+  // deform and occlude the background over five frames), on the static scene one in five. Over
+  // retry_gap frames it follows most of them, and a walking person still moves centimetres.
+  const PastFrame* near_past = nullptr;
+  for (const PastFrame& p : history_) {
+    if (o.retry_gap > 0 && p.tracked && p.index + static_cast<size_t>(o.retry_gap) == frame.index &&
+        &p != past)
+      near_past = &p;
+  }
+  if (near_past != nullptr) {
+    std::vector<size_t> retry;  // indices into tracked_points
+    std::vector<cv::Point2f> retry_points, retry_guesses;
+    for (size_t t = 0; t < tracked_points.size(); ++t) {
+      if (found[t]) continue;
+      const size_t i = static_cast<size_t>(candidates[tracked_slot[t]]);
+      retry.push_back(t);
+      retry_points.push_back(tracked_points[t]);
+      retry_guesses.push_back(where_static_was_in(*near_past, frame.keypoints[i].pt,
+                                                  frame.undistorted[i], frame.depth[i]));
+    }
+    std::vector<cv::Point2f> near_points;
+    std::vector<uint8_t> near_found;
+    TrackPointsBack(o, input.gray, near_past->gray, retry_points, &near_points, &near_found,
+                    &retry_guesses);
+    const std::vector<cv::Point2f> near_undistorted = camera.UndistortPoints(near_points);
+    const Eigen::Isometry3d T_world_near = near_past->T_camera_world.inverse();
+    for (size_t q = 0; q < retry.size(); ++q) {
+      if (!near_found[q]) continue;
+      const size_t slot = tracked_slot[retry[q]];
+      const size_t i = static_cast<size_t>(candidates[slot]);
+      Ends& e = ends[slot];
+      e.past_depths = DepthCandidates(near_past->depth, near_points[q], r);
+      e.current_depths = DepthCandidates(input.depth, frame.keypoints[i].pt, r);
+      if (e.past_depths.empty() || e.current_depths.empty()) continue;
+      measured[slot] = 1;
+      e.past_origin = T_world_near.translation();
+      e.past_direction = T_world_near.linear() *
+                         camera.Unproject({near_undistorted[q].x, near_undistorted[q].y}, 1);
+      e.current_direction = camera.Unproject({frame.undistorted[i].x, frame.undistorted[i].y}, 1);
+    }
   }
   std::vector<cv::Point2f> candidate_points;
   for (int i : candidates) candidate_points.push_back(frame.keypoints[static_cast<size_t>(i)].pt);
