@@ -493,19 +493,27 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
   std::vector<uint8_t> measured(n, 0);
   std::vector<Ends> ends(n);
   const int r = o.depth_window_radius;
+  // The two ends of a correspondence: `past_pixel` (undistorted: `past_undistorted_pixel`) in
+  // `earlier`, `pixel` (`undistorted`) now. False when either window has no depth.
+  auto make_ends = [&](const PastFrame& earlier, const cv::Point2f& past_pixel,
+                       const cv::Point2f& past_undistorted_pixel, const cv::Point2f& pixel,
+                       const cv::Point2f& undistorted, Ends* e) {
+    e->past_depths = DepthCandidates(earlier.depth, past_pixel, r);
+    e->current_depths = DepthCandidates(input.depth, pixel, r);
+    if (e->past_depths.empty() || e->current_depths.empty()) return false;
+    const Eigen::Isometry3d T_world_earlier = earlier.T_camera_world.inverse();
+    e->past_origin = T_world_earlier.translation();
+    e->past_direction = T_world_earlier.linear() *
+                        camera.Unproject({past_undistorted_pixel.x, past_undistorted_pixel.y}, 1);
+    e->current_direction = camera.Unproject({undistorted.x, undistorted.y}, 1);
+    return true;
+  };
   for (size_t t = 0; t < tracked_points.size(); ++t) {
     if (!found[t]) continue;
     const size_t slot = tracked_slot[t];
     const size_t i = static_cast<size_t>(candidates[slot]);
-    Ends& e = ends[slot];
-    e.past_depths = DepthCandidates(past->depth, past_points[t], r);
-    e.current_depths = DepthCandidates(input.depth, frame.keypoints[i].pt, r);
-    if (e.past_depths.empty() || e.current_depths.empty()) continue;
-    measured[slot] = 1;
-    e.past_origin = T_world_past.translation();
-    e.past_direction =
-        T_world_past.linear() * camera.Unproject({past_undistorted[t].x, past_undistorted[t].y}, 1);
-    e.current_direction = camera.Unproject({frame.undistorted[i].x, frame.undistorted[i].y}, 1);
+    measured[slot] = make_ends(*past, past_points[t], past_undistorted[t], frame.keypoints[i].pt,
+                               frame.undistorted[i], &ends[slot]);
   }
   // Features Lucas–Kanade cannot follow back frame_gap frames: on movers most are (they turn,
   // deform and occlude the background over five frames), on the static scene one in five. Over
@@ -532,20 +540,12 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
     TrackPointsBack(o, input.gray, near_past->gray, retry_points, &near_points, &near_found,
                     &retry_guesses);
     const std::vector<cv::Point2f> near_undistorted = camera.UndistortPoints(near_points);
-    const Eigen::Isometry3d T_world_near = near_past->T_camera_world.inverse();
     for (size_t q = 0; q < retry.size(); ++q) {
       if (!near_found[q]) continue;
       const size_t slot = tracked_slot[retry[q]];
       const size_t i = static_cast<size_t>(candidates[slot]);
-      Ends& e = ends[slot];
-      e.past_depths = DepthCandidates(near_past->depth, near_points[q], r);
-      e.current_depths = DepthCandidates(input.depth, frame.keypoints[i].pt, r);
-      if (e.past_depths.empty() || e.current_depths.empty()) continue;
-      measured[slot] = 1;
-      e.past_origin = T_world_near.translation();
-      e.past_direction = T_world_near.linear() *
-                         camera.Unproject({near_undistorted[q].x, near_undistorted[q].y}, 1);
-      e.current_direction = camera.Unproject({frame.undistorted[i].x, frame.undistorted[i].y}, 1);
+      measured[slot] = make_ends(*near_past, near_points[q], near_undistorted[q],
+                                 frame.keypoints[i].pt, frame.undistorted[i], &ends[slot]);
     }
   }
   std::vector<cv::Point2f> candidate_points;
@@ -596,14 +596,9 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
                                  camera.Unproject(pixel, z), pixel});
       if (o.sample_votes) {
         Ends e;
-        e.past_depths = DepthCandidates(past->depth, sample_past[s], r);
-        e.current_depths = DepthCandidates(input.depth, samples[s], r);
-        if (e.past_depths.empty() || e.current_depths.empty()) continue;
-        e.past_origin = T_world_past.translation();
-        e.past_direction =
-            T_world_past.linear() *
-            camera.Unproject({sample_past_undistorted[s].x, sample_past_undistorted[s].y}, 1);
-        e.current_direction = camera.Unproject(pixel, 1);
+        if (!make_ends(*past, sample_past[s], sample_past_undistorted[s], samples[s],
+                       samples_undistorted[s], &e))
+          continue;
         sample_ends.push_back(std::move(e));
         sample_points.push_back(samples[s]);
       }
