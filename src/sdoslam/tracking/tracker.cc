@@ -435,14 +435,22 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
   }
   if (past == nullptr) return {};
   const Camera& camera = frame.geometry->camera;
+  // Inliers of the frame's matches, and those of them that are established landmarks.
+  auto count_inliers = [&](int* established) {
+    int inliers = 0;
+    *established = 0;
+    for (size_t i = 0; i < frame.size(); ++i) {
+      const MapPoint* p = frame.map_points[i];
+      if (p == nullptr || p->bad || frame.outlier[i] || p->observations.empty()) continue;
+      ++inliers;
+      *established += static_cast<int>(p->observations.size()) >= o.established_observations;
+    }
+    return inliers;
+  };
   // Tracking's pose and how many established landmarks it keeps as inliers.
   const Eigen::Isometry3d tracking_pose = frame.T_camera_world;
   int rough_established = 0;
-  for (size_t i = 0; i < frame.size(); ++i) {
-    const MapPoint* p = frame.map_points[i];
-    rough_established += p != nullptr && !p->bad && !frame.outlier[i] &&
-                         static_cast<int>(p->observations.size()) >= o.established_observations;
-  }
+  count_inliers(&rough_established);
 
   // Candidates: the features still taken as static. Those with depth get a correspondence in the
   // past frame by Lucas–Kanade, and both ends become landmarks from depth.
@@ -453,10 +461,12 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
   std::vector<size_t> tracked_slot;
   // Where a static point seen at `pixel` (undistorted: `undistorted`) at `depth` was in a past
   // frame (`earlier`) at the rough pose; `pixel` itself when that falls outside the image.
-  auto where_static_was_in = [&](const PastFrame& earlier, const cv::Point2f& pixel,
-                                 const cv::Point2f& undistorted, double depth) {
-    const Eigen::Vector3d in_past = earlier.T_camera_world * frame.T_camera_world.inverse() *
-                                    camera.Unproject({undistorted.x, undistorted.y}, depth);
+  // `T_earlier_camera`: this camera (rough pose) in the earlier frame's.
+  auto where_static_was_in = [&](const Eigen::Isometry3d& T_earlier_camera,
+                                 const cv::Point2f& pixel, const cv::Point2f& undistorted,
+                                 double depth) {
+    const Eigen::Vector3d in_past =
+        T_earlier_camera * camera.Unproject({undistorted.x, undistorted.y}, depth);
     if (in_past.z() > 0) {
       const Eigen::Vector2d p = camera.Distort(camera.Project(in_past));
       if (p.x() >= 0 && p.y() >= 0 && p.x() < camera.width() && p.y() < camera.height())
@@ -464,9 +474,10 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
     }
     return pixel;
   };
+  const Eigen::Isometry3d T_past_camera = past->T_camera_world * frame.T_camera_world.inverse();
   auto where_static_was = [&](const cv::Point2f& pixel, const cv::Point2f& undistorted,
                               double depth) {
-    return where_static_was_in(*past, pixel, undistorted, depth);
+    return where_static_was_in(T_past_camera, pixel, undistorted, depth);
   };
   for (size_t i = 0; i < frame.size(); ++i) {
     if (!frame.IsStatic(static_cast<int>(i))) continue;
@@ -525,6 +536,8 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
       near_past = &p;
   }
   if (near_past != nullptr) {
+    const Eigen::Isometry3d T_near_camera =
+        near_past->T_camera_world * frame.T_camera_world.inverse();
     std::vector<size_t> retry;  // indices into tracked_points
     std::vector<cv::Point2f> retry_points, retry_guesses;
     for (size_t t = 0; t < tracked_points.size(); ++t) {
@@ -532,7 +545,7 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
       const size_t i = static_cast<size_t>(candidates[tracked_slot[t]]);
       retry.push_back(t);
       retry_points.push_back(tracked_points[t]);
-      retry_guesses.push_back(where_static_was_in(*near_past, frame.keypoints[i].pt,
+      retry_guesses.push_back(where_static_was_in(T_near_camera, frame.keypoints[i].pt,
                                                   frame.undistorted[i], frame.depth[i]));
     }
     std::vector<cv::Point2f> near_points;
@@ -694,13 +707,8 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
     OptimizeAndCount(frame);
   }
 
-  int inliers = 0, established = 0;
-  for (size_t i = 0; i < frame.size(); ++i) {
-    const MapPoint* p = frame.map_points[i];
-    const bool inlier = p != nullptr && !p->bad && !frame.outlier[i] && !p->observations.empty();
-    inliers += inlier;
-    established += inlier && static_cast<int>(p->observations.size()) >= o.established_observations;
-  }
+  int established = 0;
+  const int inliers = count_inliers(&established);
   // The map's hypothesis: landmarks that several keyframes agree on. A check that keeps only a
   // small share of those the rough pose kept has overturned the map on one frame's evidence.
   const bool overturns_map = o.min_established_kept > 0 && rough_established > 0 &&
