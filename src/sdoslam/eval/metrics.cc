@@ -163,15 +163,12 @@ size_t ClosestIndex(const std::vector<double>& values, double target) {
   return hi;
 }
 
-// Pairs (estimate index, estimate index) and their ground-truth indices as TUM's
-// evaluate_rpe.py --fixed_delta forms them.
-struct TumPairs {
-  std::vector<std::array<size_t, 4>> pairs;  // est i, est j, gt i, gt j
-};
-
-TumPairs PairAsTum(const Trajectory& ground_truth, const Trajectory& estimate,
-                   const RteOptions& options) {
-  TumPairs out;
+// Pairs as TUM's evaluate_rpe.py --fixed_delta forms them: {estimate i, estimate j,
+// ground truth i, ground truth j}.
+std::vector<std::array<size_t, 4>> PairAsTum(const Trajectory& ground_truth,
+                                             const Trajectory& estimate,
+                                             const RteOptions& options) {
+  std::vector<std::array<size_t, 4>> out;
   const size_t n = estimate.size();
   std::vector<double> est_times(n), gt_times(ground_truth.size()), gt_intervals;
   for (size_t k = 0; k < n; ++k) est_times[k] = estimate[k].timestamp;
@@ -192,7 +189,7 @@ TumPairs PairAsTum(const Trajectory& ground_truth, const Trajectory& estimate,
     const size_t gi = ClosestIndex(gt_times, ti), gj = ClosestIndex(gt_times, tj);
     if (std::abs(gt_times[gi] - ti) > gt_tolerance || std::abs(gt_times[gj] - tj) > gt_tolerance)
       continue;
-    out.pairs.push_back({i, j, gi, gj});
+    out.push_back({i, j, gi, gj});
   }
   return out;
 }
@@ -245,7 +242,7 @@ RteResult ComputeRte(const Trajectory& ground_truth, const Trajectory& estimate,
   // Pairs as indices into `estimate` and `ground_truth`: start and end of each.
   std::vector<std::array<size_t, 4>> pairs;
   if (options.pairing == RtePairing::kTum) {
-    pairs = PairAsTum(ground_truth, estimate, options).pairs;
+    pairs = PairAsTum(ground_truth, estimate, options);
   } else {
     for (const auto& [i, j] : StrictPairs(match, estimate, options)) {
       pairs.push_back({match.estimate_index[i], match.estimate_index[j],
