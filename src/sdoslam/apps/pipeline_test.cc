@@ -411,8 +411,8 @@ std::optional<RealBackgroundResult> RunOverTheRealDesk(const std::string& scenar
 
 // The bar on a real-background sequence: every frame tracked, sdo within
 // 1.3 x oracle + 2 mm, and the unknown objects' masks at IoU >= 0.6.
-void ExpectTheOracleBarAndUnknownMasks(const std::string& scenario) {
-  const auto r = RunOverTheRealDesk(scenario, {RunMode::kOracle, RunMode::kSdo});
+void ExpectTheOracleBarAndUnknownMasks(const std::string& scenario, uint32_t seed = 1) {
+  const auto r = RunOverTheRealDesk(scenario, {RunMode::kOracle, RunMode::kSdo}, seed);
   if (!r) GTEST_SKIP() << "tum_fr2_desk_50 absent";
   EXPECT_EQ(r->tracked.at(RunMode::kSdo), 99u);
   const double sdo = r->ate.at(RunMode::kSdo), oracle = r->ate.at(RunMode::kOracle);
@@ -433,9 +433,15 @@ TEST(PipelineRealBackground, SwingingBoxesOverTheRealDeskAreTakenOut) {
 
 // A large textured box carried in front of the camera (26 % of the image, more corners than the
 // desk): most features are on it, and before the static world was chosen by area, tracking
-// followed the box (102 mm against the oracle's 4.1).
+// followed the box (102 mm against the oracle's 4.1). Held on three noise seeds, each to the
+// bar: while the check judged a segment above 20 % of the image feature by feature, seed 2 gave
+// 7.1 mm against a bar of 6.9 (the features left unmeasured on the box stayed static in the
+// frames the front end missed it).
 TEST(PipelineRealBackground, ABoxCarriedWithTheCameraDoesNotCaptureThePose) {
-  ExpectTheOracleBarAndUnknownMasks("carried_box");
+  for (uint32_t seed : {1u, 2u, 3u}) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    ExpectTheOracleBarAndUnknownMasks("carried_box", seed);
+  }
 }
 
 // The carried box, a swinging box and a person at once: together they cover more than half of
@@ -456,6 +462,10 @@ TEST(PipelineRealBackground, TheBoxASwingingBoxAndAPersonAtOnceDoNotCaptureThePo
     oracle.push_back(r->ate.at(RunMode::kOracle));
     ASSERT_EQ(r->sdo_masks.per_class.count("unknown"), 1u);
     EXPECT_GE(r->sdo_masks.per_class.at("unknown").Iou(), 0.6) << "seed " << seed;
+    // The person is found by motion alone (no detector knows the rendered box-people); seed 1
+    // gave 0.599 while the check judged the carried box feature by feature.
+    ASSERT_EQ(r->sdo_masks.per_class.count("person"), 1u);
+    EXPECT_GE(r->sdo_masks.per_class.at("person").Iou(), 0.6) << "seed " << seed;
   }
   std::sort(sdo.begin(), sdo.end());
   std::sort(oracle.begin(), oracle.end());
