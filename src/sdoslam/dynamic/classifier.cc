@@ -40,6 +40,8 @@ void SdoClassifierOptions::Check() const {
   fraction(min_in_front_of_outline, "min_in_front_of_outline");
   fraction(max_segment_area, "max_segment_area");
   fraction(persistence_overlap, "persistence_overlap");
+  fraction(persistence_min_in_front, "persistence_min_in_front");
+  if (persistence_min_ordered < 0) throw Error("classifier.persistence_min_ordered must be ≥ 0");
   if (same_depth_tolerance < 0) throw Error("classifier.same_depth_tolerance must be ≥ 0");
   if (same_depth_min_m < 0) throw Error("classifier.same_depth_min_m must be ≥ 0");
   if (in_front_ratio < 1) throw Error("classifier.in_front_ratio must be ≥ 1");
@@ -224,7 +226,12 @@ SdoResult SdoClassifier::Classify(const Segmentation& segments,
     }
     for (int s = 0; s < n; ++s) {
       const SegmentStats& st = stats[static_cast<size_t>(s)];
-      if (st.area > 0 && st.area <= max_area &&
+      // The memory stays on the pixels a mover covered; where it has gone, the wall that comes
+      // back into view there lies behind whatever borders it, and is not remembered.
+      const int ordered = st.in_front + st.behind;
+      const bool behind = ordered >= options_.persistence_min_ordered &&
+                          st.in_front < options_.persistence_min_in_front * ordered;
+      if (st.area > 0 && st.area <= max_area && !behind &&
           remembered[static_cast<size_t>(s)] >= options_.persistence_overlap * st.area)
         moving[static_cast<size_t>(s)] |= 2;  // remembered, not refreshed
     }

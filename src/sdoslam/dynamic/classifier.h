@@ -55,6 +55,15 @@ struct SdoClassifierOptions {
   // (a pendulum at its turning point) or move along their own outline stay caught.
   int persistence_frames = 5;
   double persistence_overlap = 0.5;
+  // ... unless the segment lies behind its neighbours: nearer side along less than
+  // persistence_min_in_front of at least persistence_min_ordered depth-ordered outline pairs.
+  // The memory stays on the pixels a mover covered, and where a person who filled most of the
+  // view has walked on, the room that comes back there is behind what still borders it
+  // (synthetic loop, 900 frames: 40-47 % of the room in view labelled for frames after the
+  // person had gone, and tracking lost; with the rule no frame with 30 % of the room in view is
+  // lost, ATE 12.6 -> 8.2 mm, worst frame 215 -> 59 mm). A paused mover stays in front.
+  double persistence_min_in_front = 0.2;
+  int persistence_min_ordered = 10;
 
   int margin_px = 1;  // work pixels by which dynamic regions grow (features on silhouettes)
   void Check() const;

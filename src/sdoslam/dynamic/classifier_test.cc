@@ -172,6 +172,30 @@ TEST(SdoClassifier, SelectedObjectPersistsForTheConfiguredFramesThenLapses) {
                                         kStatic}));
 }
 
+// A mover that filled B walked on; the room seen there now is farther than the wall around it
+// (B's pixels read 3.5 m inside a wall at 3 m). The memory still covers B, but B lies behind
+// everything it borders, so it is not remembered; an object that paused (still 1.5 m) is.
+TEST(SdoClassifier, MemoryDoesNotKeepWhatComesBackIntoViewBehindAMoverThatLeft) {
+  auto second_frame = [](const SdoClassifierOptions& o, float depth_of_b) {
+    Scene s;
+    SdoClassifier classifier(o);
+    const cv::Mat zero_flow(120, 160, CV_32FC2, cv::Scalar(0, 0));
+    EXPECT_EQ(classifier.Classify(s.segments, {}, s.OutlineOf(s.b), zero_flow, s.depth, {160, 120})
+                  .segment_labels[2],
+              kMovingUnknown);
+    s.depth(s.b).setTo(depth_of_b);
+    return classifier
+        .Classify(s.segments, {}, cv::Mat(120, 160, CV_8U, cv::Scalar(0)), zero_flow, s.depth,
+                  {160, 120})
+        .segment_labels[2];
+  };
+  EXPECT_EQ(second_frame(ExactOptions(), 3.5f), kStatic);
+  EXPECT_EQ(second_frame(ExactOptions(), 1.5f), kMovingUnknown);
+  SdoClassifierOptions without_rule = ExactOptions();
+  without_rule.persistence_min_in_front = 0;
+  EXPECT_EQ(second_frame(without_rule, 3.5f), kMovingUnknown);
+}
+
 TEST(SdoClassifier, MemoryFollowsTheFlow) {
   // B moved 40 px to the left since the last frame; the memory must follow it there.
   Scene s;

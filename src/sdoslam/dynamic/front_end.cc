@@ -146,6 +146,8 @@ FrontEndOptions ReadFrontEndOptions(ConfigMap& root) {
     s->Read("max_segment_area", &c.max_segment_area);
     s->Read("persistence_frames", &c.persistence_frames);
     s->Read("persistence_overlap", &c.persistence_overlap);
+    s->Read("persistence_min_in_front", &c.persistence_min_in_front);
+    s->Read("persistence_min_ordered", &c.persistence_min_ordered);
     s->Read("margin_px", &c.margin_px);
     s->RejectUnknownKeys();
   }
@@ -225,6 +227,8 @@ void WriteFrontEndOptions(const FrontEndOptions& o, YAML::Emitter* out) {
   kv("max_segment_area", c.max_segment_area);
   kv("persistence_frames", c.persistence_frames);
   kv("persistence_overlap", c.persistence_overlap);
+  kv("persistence_min_in_front", c.persistence_min_in_front);
+  kv("persistence_min_ordered", c.persistence_min_ordered);
   kv("margin_px", c.margin_px);
   y << YAML::EndMap;
   y << YAML::EndMap;
