@@ -41,6 +41,8 @@ SlamOptions ReadSlamOptions(ConfigMap& root) {
     s->Read("reference_ratio", &o.tracking.reference_ratio);
     s->Read("projection_radius", &o.tracking.projection_radius);
     s->Read("relocalization_candidates", &o.tracking.relocalization_candidates);
+    s->Read("relocalization_prior_frames", &o.tracking.relocalization_prior_frames);
+    s->Read("relocalization_radius_factor", &o.tracking.relocalization_radius_factor);
     s->RejectUnknownKeys();
   }
   if (auto s = root.Section("consistency")) {
@@ -79,8 +81,11 @@ void WriteSlamOptions(const SlamOptions& o, YAML::Emitter* out) {
     << YAML::Value << o.tracking.min_inliers << YAML::Key << "max_frames_between_keyframes"
     << YAML::Value << o.tracking.max_frames_between_keyframes << YAML::Key
     << "relocalization_candidates" << YAML::Value << o.tracking.relocalization_candidates
-    << YAML::Key << "reference_ratio" << YAML::Value << o.tracking.reference_ratio << YAML::Key
-    << "projection_radius" << YAML::Value << o.tracking.projection_radius << YAML::EndMap;
+    << YAML::Key << "relocalization_prior_frames" << YAML::Value
+    << o.tracking.relocalization_prior_frames << YAML::Key << "relocalization_radius_factor"
+    << YAML::Value << o.tracking.relocalization_radius_factor << YAML::Key << "reference_ratio"
+    << YAML::Value << o.tracking.reference_ratio << YAML::Key << "projection_radius" << YAML::Value
+    << o.tracking.projection_radius << YAML::EndMap;
   y << YAML::Key << "consistency" << YAML::Value << YAML::BeginMap;
   SceneFlowOptions::VisitFields(o.tracking.consistency, [&](const char* key, const auto& value) {
     y << YAML::Key << key << YAML::Value << value;

@@ -117,7 +117,7 @@ int SearchByProjection(Frame& current, const Frame& last, double radius) {
 }
 
 int SearchLocalPoints(Frame& current, const std::vector<MapPoint*>& points, uint64_t frame_stamp,
-                      double radius_factor) {
+                      double radius_factor, bool count_visible) {
   const FrameGeometry& g = *current.geometry;
   const Eigen::Isometry3d& T = current.T_camera_world;
   const Eigen::Vector3d centre = current.CameraCentre();
@@ -127,7 +127,7 @@ int SearchLocalPoints(Frame& current, const std::vector<MapPoint*>& points, uint
     PredictedView view;
     if (!PredictInView(g, T, centre, *point, &view)) continue;
     const auto& [p, u, v, distance, view_cos] = view;
-    ++point->visible;
+    if (count_visible) ++point->visible;
     const int level = point->PredictLevel(distance, g);
     const double radius =
         radius_factor * (view_cos > 0.998 ? 2.5 : 4.0) * g.scale[static_cast<size_t>(level)];

@@ -17,9 +17,10 @@ int SearchByProjection(Frame& current, const Frame& last, double radius);
 
 // Matches `points` (the local map) not yet matched in `current`, predicted in view at
 // `current`'s pose. `radius_factor` scales the search window (1 normally). Returns the number
-// matched; counts each predicted-visible point's `visible`.
+// matched; counts each predicted-visible point's `visible` when `count_visible` (not for a
+// trial search at a guessed pose, which would skew the points' found/visible ratio).
 int SearchLocalPoints(Frame& current, const std::vector<MapPoint*>& points, uint64_t frame_stamp,
-                      double radius_factor);
+                      double radius_factor, bool count_visible = true);
 
 // Brute-force descriptor matching of `current` against the map points of `keyframe` with
 // Lowe's ratio test: a fallback when no pose prediction is good enough.

@@ -34,6 +34,10 @@ void TrackerOptions::Check() const {
     throw Error("tracking.reference_ratio must be in (0, 1)");
   if (!(projection_radius > 0)) throw Error("tracking.projection_radius must be positive");
   if (relocalization_candidates < 0) throw Error("tracking.relocalization_candidates must be >= 0");
+  if (relocalization_prior_frames < 0)
+    throw Error("tracking.relocalization_prior_frames must be >= 0");
+  if (!(relocalization_radius_factor >= 1))
+    throw Error("tracking.relocalization_radius_factor must be >= 1");
   consistency.Check();
 }
 
@@ -123,8 +127,13 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
   result.state = state_;
   result.T_camera_world = frame.T_camera_world;
   if (ok) {
-    has_velocity_ = true;
-    velocity_ = frame.T_camera_world * last_frame_->T_camera_world.inverse();
+    // After frames lost, the last tracked frame is several frames back: its motion to this one
+    // is no velocity, and the motion that was (kept for the next relocalization) stays.
+    if (frames_lost_ == 0) {
+      velocity_ = frame.T_camera_world * last_frame_->T_camera_world.inverse();
+      has_velocity_ = true;
+    }
+    frames_lost_ = 0;
     if (mapping_accepts && NeedKeyFrame(frame, result.inliers, mapping_idle)) {
       *new_keyframe = CreateKeyFrame(frame);
       result.keyframe = true;
@@ -134,6 +143,7 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
     last_frame_ = std::make_unique<Frame>(result.keyframe ? (*new_keyframe)->frame : frame);
   } else {
     has_velocity_ = false;
+    ++frames_lost_;
     trajectory_.push_back({frame.timestamp, nullptr, Eigen::Isometry3d::Identity()});
   }
   RememberFrame(frame.index, ok, frame.T_camera_world, consistency);
@@ -239,7 +249,40 @@ bool Tracker::TrackReferenceKeyFrame(Frame& frame) {
   return OptimizeAndCount(frame) >= 10;
 }
 
+bool Tracker::RelocalizeNearPrediction(Frame& frame) {
+  if (frames_lost_ >= options_.relocalization_prior_frames) return false;
+  // Every map point: the part of the room that comes back into view is often one that only
+  // keyframes outside the reference's covisible set saw (synthetic loop: a person passing close
+  // hid one side of the view, then the other), and the projection test keeps the search to
+  // the points in view. A map that follows the place stays small.
+  std::vector<MapPoint*> points;
+  points.reserve(map_->points().size());
+  for (const auto& [id, p] : map_->points()) {
+    if (!p->bad && !p->observations.empty()) points.push_back(p.get());
+  }
+  // velocity_ still holds the motion between the last two tracked frames.
+  Eigen::Isometry3d carried_on = last_frame_->T_camera_world;
+  for (int k = 0; k <= frames_lost_; ++k) carried_on = velocity_ * carried_on;
+  for (const Eigen::Isometry3d& prediction : {carried_on, last_frame_->T_camera_world}) {
+    std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
+    frame.T_camera_world = prediction;
+    // A stamp of its own per try (the search skips points stamped with the stamp it is given);
+    // TrackLocalMap then searches at the found pose under a fresh one.
+    const int matches = SearchLocalPoints(frame, points, ++frame_stamp_,
+                                          options_.relocalization_radius_factor, false);
+    if (matches >= 20 && OptimizeAndCount(frame) >= options_.min_inliers) {
+      ++frame_stamp_;
+      return true;
+    }
+  }
+  ++frame_stamp_;
+  std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
+  frame.T_camera_world = last_frame_->T_camera_world;
+  return false;
+}
+
 bool Tracker::Relocalize(Frame& frame) {
+  if (RelocalizeNearPrediction(frame)) return true;
   // Candidates: the reference keyframe and its best neighbours, then the keyframes made last.
   // The reference alone is not enough: when a person fills the view before tracking is lost,
   // the last keyframes see mostly that person (conventional mode maps it), and the room comes
