@@ -240,6 +240,26 @@ TEST_F(CliRun, SequentialTwiceGivesIdenticalTrajectoryFiles) {
   EXPECT_EQ(files[0], files[1]);
 }
 
+// Local mapping runs in its own thread unless --sequential or the config's run: section asks
+// otherwise; the resolved config.yaml records which.
+TEST_F(CliRun, MapsInAThreadByDefaultAndSequentiallyWhenAsked) {
+  const std::string common = "run --max-frames 5 --dataset " + (dir_ / "seq").string();
+  const std::string camera = (dir_ / "seq" / "camera.yaml").string();
+  auto sequential_recorded = [&](const std::string& args, const std::string& name) {
+    const Result r = RunSdoslam(common + " " + args + " --out " + (dir_ / name).string());
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    const std::string config = testing::ReadText(dir_ / name / "config.yaml");
+    if (config.find("sequential: true") != std::string::npos) return 1;
+    if (config.find("sequential: false") != std::string::npos) return 0;
+    return -1;
+  };
+  EXPECT_EQ(sequential_recorded("--config " + camera, "threaded"), 0);
+  EXPECT_EQ(sequential_recorded("--sequential --config " + camera, "flag"), 1);
+  testing::WriteText(dir_ / "seq_run.yaml", testing::ReadText(dir_ / "seq" / "camera.yaml") +
+                                                "run:\n  sequential: true\n");
+  EXPECT_EQ(sequential_recorded("--config " + (dir_ / "seq_run.yaml").string(), "config"), 1);
+}
+
 TEST_F(CliRun, ImpossibleIntrinsicsAndUnknownKeysAreNamed) {
   testing::WriteText(dir_ / "bad.yaml", "camera:\n  fx: -500\n  fy: 500\n  cx: 320\n  cy: 240\n");
   std::string output = Run((dir_ / "bad.yaml").string(), (dir_ / "seq").string());

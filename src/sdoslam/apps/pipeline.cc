@@ -47,6 +47,10 @@ RunOptions LoadRunConfig(const std::filesystem::path& config) {
   if (!camera_section) throw Error(config.string() + ": missing the 'camera:' section");
   run.camera = ReadCameraOptions(*camera_section);
   run.slam = ReadSlamOptions(root);
+  // A run maps in its own thread unless its run: section or --sequential says otherwise
+  // (SlamOptions defaults to sequential for library callers; a run config without run: was
+  // therefore always sequential, whatever the help said).
+  run.slam.sequential = false;
   run.front_end = ReadFrontEndOptions(root);
   if (std::optional<ConfigMap> section = root.Section("run")) {
     std::string text;
