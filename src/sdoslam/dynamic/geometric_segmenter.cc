@@ -12,8 +12,9 @@
 namespace sdoslam {
 namespace {
 
-constexpr uint8_t kDepthStep = 1;
-constexpr uint8_t kConcave = 2;
+// Edge values as last_edges() shows them.
+constexpr uint8_t kDepthStep = 127;
+constexpr uint8_t kConcave = 254;
 
 bool Finite(const cv::Vec3f& v) {
   return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]);
@@ -55,134 +56,172 @@ GeometricSegmenter::GeometricSegmenter(const GeometricSegmenterOptions& options,
 Segmentation GeometricSegmenter::Segment(const FrontEndFrame& frame) {
   const int W = work_size_.width, H = work_size_.height;
   Segmentation s;
-  s.labels = cv::Mat(work_size_, CV_32S, cv::Scalar(-1));
+  // Fresh images each frame: the labels travel on with the result and callers may keep
+  // last_edges(), so neither may be overwritten by the next frame.
   last_edges_ = cv::Mat(work_size_, CV_8U, cv::Scalar(0));
-  if (frame.depth.empty()) return s;  // no geometry, no segments
+  if (frame.depth.empty()) {  // no geometry, no segments
+    s.labels = cv::Mat(work_size_, CV_32S, cv::Scalar(-1));
+    return s;
+  }
 
-  cv::Mat z;
+  // The work images below are members: same size every frame, so OpenCV reuses their buffers.
+  cv::Mat& z = z_;
   cv::resize(frame.depth, z, work_size_, 0, 0, cv::INTER_NEAREST);
-  cv::Mat colour;
-  cv::resize(frame.bgr, colour, work_size_, 0, 0, cv::INTER_AREA);
-  colour.convertTo(colour, CV_32F, 1.0 / 255.0);
-  cv::cvtColor(colour, colour, cv::COLOR_BGR2Lab);
+  cv::resize(frame.bgr, bgr_, work_size_, 0, 0, cv::INTER_AREA);
+  bgr_.convertTo(bgr_float_, CV_32F, 1.0 / 255.0);
+  cv::cvtColor(bgr_float_, colour_, cv::COLOR_BGR2Lab);
 
-  cv::Mat points, normals;
-  cv::rgbd::depthTo3d(z, cv::Mat(K_work_), points);
-  (*normals_)(points, normals);
+  cv::rgbd::depthTo3d(z, cv::Mat(K_work_), points_);
+  (*normals_)(points_, normals_out_);
 
   // Edges: depth steps between neighbours (a row, a column and both diagonals), and concave
   // creases where the normals differ by more than concave_angle_deg and each side lies on the
   // other's front side (a convex fold puts each behind the other's tangent plane).
-  const float cos_concave = static_cast<float>(std::cos(options_.concave_angle_deg * CV_PI / 180));
-  const int span = options_.concave_span_px;
+  const double depth_step = options_.depth_step, depth_step_min_m = options_.depth_step_min_m;
+  const auto is_step = [&](float zi, float zj) {
+    if (!(zj > 0)) return false;
+    const double step = std::max(depth_step * std::min(zi, zj), depth_step_min_m);
+    return std::abs(zi - zj) > step;
+  };
   cv::Mat& edges = last_edges_;
   for (int y = 0; y < H; ++y) {
     const float* zr = z.ptr<float>(y);
+    uint8_t* er = edges.ptr<uint8_t>(y);
+    const bool below = y + 1 < H;
+    const float* zb = below ? z.ptr<float>(y + 1) : nullptr;
+    uint8_t* eb = below ? edges.ptr<uint8_t>(y + 1) : nullptr;
     for (int x = 0; x < W; ++x) {
       const float zi = zr[x];
       if (!(zi > 0)) continue;
-      for (const auto& [dx, dy] :
-           {std::pair{1, 0}, std::pair{0, 1}, std::pair{1, 1}, std::pair{-1, 1}}) {
-        const int xj = x + dx, yj = y + dy;
-        if (xj < 0 || xj >= W || yj >= H) continue;
-        const float zj = z.at<float>(yj, xj);
-        if (!(zj > 0)) continue;
-        const double step =
-            std::max(options_.depth_step * std::min(zi, zj), options_.depth_step_min_m);
-        if (std::abs(zi - zj) > step) {
-          edges.at<uint8_t>(y, x) = kDepthStep;
-          edges.at<uint8_t>(yj, xj) = kDepthStep;
-        }
-      }
+      if (x + 1 < W && is_step(zi, zr[x + 1])) er[x] = er[x + 1] = kDepthStep;
+      if (!below) continue;
+      if (is_step(zi, zb[x])) er[x] = eb[x] = kDepthStep;
+      if (x + 1 < W && is_step(zi, zb[x + 1])) er[x] = eb[x + 1] = kDepthStep;
+      if (x > 0 && is_step(zi, zb[x - 1])) er[x] = eb[x - 1] = kDepthStep;
     }
   }
+
+  // The crease test below looks at every pixel's normal from several centres: each normal is
+  // turned towards the camera (the origin) once, and pixels without depth or without a finite
+  // normal are marked unusable once. The work images are continuous (allocated by create()), so
+  // the loops below index them as flat arrays.
+  CV_Assert(z.isContinuous() && points_.isContinuous() && normals_out_.isContinuous() &&
+            edges.isContinuous());
+  const int size = W * H;
+  const float* zf = z.ptr<float>();
+  const cv::Vec3f* points = points_.ptr<cv::Vec3f>();
+  cv::Vec3f* normals = normals_out_.ptr<cv::Vec3f>();
+  uint8_t* edge = edges.ptr<uint8_t>();
+  usable_.resize(size);
+  for (int i = 0; i < size; ++i) {
+    usable_[i] = zf[i] > 0 && Finite(normals[i]);
+    if (usable_[i] && normals[i].dot(points[i]) > 0) normals[i] = -normals[i];
+  }
+
   // Creases: the pixels on either side of each pixel, concave_span_px away along a row, a column
   // or a diagonal, are compared, and the pixel is an edge when the fold between them is concave
   // and sharp. Looking across the pixel (not from it) gives a band of edge pixels that closes
   // the crease line; normals next to a crease are blends of both planes (the normal window
   // straddles it), the pixels span away are on the planes themselves.
+  // The same pass marks the region pixels (depth and no edge) for the connected components.
+  const float cos_concave = static_cast<float>(std::cos(options_.concave_angle_deg * CV_PI / 180));
+  const int span = options_.concave_span_px;
+  // The pixels compared across pixel i along a direction are i − offset and i + offset.
+  const int along_row = span, along_column = span * W;
+  const int down_right = along_column + along_row, up_right = along_row - along_column;
+  const auto concave = [&](int i, int offset) {
+    const int a = i - offset, b = i + offset;
+    if (!usable_[a] || !usable_[b]) return false;
+    const cv::Vec3f &na = normals[a], &nb = normals[b];
+    if (na.dot(nb) >= cos_concave) return false;
+    // Concave: each lies on the front side of the other's tangent plane.
+    const cv::Vec3f d = points[b] - points[a];
+    return d.dot(na) > 0 && -d.dot(nb) > 0;
+  };
+  inside_.create(work_size_, CV_8U);
+  uint8_t* inside = inside_.ptr<uint8_t>();
   for (int y = 0; y < H; ++y) {
-    for (int x = 0; x < W; ++x) {
-      if (!(z.at<float>(y, x) > 0) || edges.at<uint8_t>(y, x) != 0) continue;
-      for (const auto& [dx, dy] :
-           {std::pair{1, 0}, std::pair{0, 1}, std::pair{1, 1}, std::pair{1, -1}}) {
-        const int xa = x - dx * span, ya = y - dy * span, xb = x + dx * span, yb = y + dy * span;
-        // Near the border only the directions that fit are used (a crease must reach it).
-        if (xa < 0 || xb >= W || std::min(ya, yb) < 0 || std::max(ya, yb) >= H) continue;
-        if (!(z.at<float>(ya, xa) > 0) || !(z.at<float>(yb, xb) > 0)) continue;
-        cv::Vec3f na = normals.at<cv::Vec3f>(ya, xa), nb = normals.at<cv::Vec3f>(yb, xb);
-        if (!Finite(na) || !Finite(nb)) continue;
-        const cv::Vec3f pa = points.at<cv::Vec3f>(ya, xa), pb = points.at<cv::Vec3f>(yb, xb);
-        if (na.dot(pa) > 0) na = -na;  // normals face the camera (the origin)
-        if (nb.dot(pb) > 0) nb = -nb;
-        if (na.dot(nb) >= cos_concave) continue;
-        // Concave: each lies on the front side of the other's tangent plane.
-        const cv::Vec3f d = pb - pa;
-        if (d.dot(na) > 0 && -d.dot(nb) > 0) {
-          edges.at<uint8_t>(y, x) = kConcave;
-          break;
-        }
+    const bool rows_fit = y - span >= 0 && y + span < H;
+    for (int x = 0, i = y * W; x < W; ++x, ++i) {
+      inside[i] = 0;
+      if (!(zf[i] > 0) || edge[i] != 0) continue;
+      // Near the border only the directions that fit are used (a crease must reach it).
+      const bool columns_fit = x - span >= 0 && x + span < W;
+      if ((columns_fit && concave(i, along_row)) || (rows_fit && concave(i, along_column)) ||
+          (columns_fit && rows_fit && (concave(i, down_right) || concave(i, up_right)))) {
+        edge[i] = kConcave;
+        continue;
       }
+      inside[i] = 1;
     }
   }
 
   // Regions: connected pixels with depth and no edge; the small ones are dissolved.
-  cv::Mat inside = (z > 0) & (edges == 0);
-  cv::Mat components, stats, centroids;
-  const int n = cv::connectedComponentsWithStats(inside, components, stats, centroids, 4, CV_32S);
+  const int n =
+      cv::connectedComponentsWithStats(inside_, components_, stats_, centroids_, 4, CV_32S);
   std::vector<int> renumber(n, -1);
   int count = 0;
   for (int c = 1; c < n; ++c) {
-    if (stats.at<int>(c, cv::CC_STAT_AREA) >= options_.min_size) renumber[c] = count++;
+    if (stats_.at<int>(c, cv::CC_STAT_AREA) >= options_.min_size) renumber[c] = count++;
   }
-  cv::Mat labels(work_size_, CV_32S);
-  for (int y = 0; y < H; ++y) {
-    const int* in = components.ptr<int>(y);
-    int* out = labels.ptr<int>(y);
-    for (int x = 0; x < W; ++x) out[x] = renumber[in[x]];
+  cv::Mat labels_image(work_size_, CV_32S);
+  CV_Assert(components_.isContinuous() && colour_.isContinuous());
+  int* labels = labels_image.ptr<int>();
+  const int* components = components_.ptr<int>();
+  candidates_.clear();
+  for (int i = 0; i < size; ++i) {
+    labels[i] = renumber[components[i]];
+    if (labels[i] < 0) candidates_.push_back(i);
   }
 
   // Growth: an unlabelled pixel takes the label of the 4-neighbour nearest in depth (within
   // max_grow_depth_ratio), or, where either has no depth, nearest in colour. Each pass reads the
-  // previous one's labels, so the result does not depend on the scan order.
-  for (int pass = 0; pass < options_.grow_passes; ++pass) {
-    cv::Mat next = labels.clone();
-    bool changed = false;
-    for (int y = 0; y < H; ++y) {
-      for (int x = 0; x < W; ++x) {
-        if (labels.at<int>(y, x) >= 0) continue;
-        const float zi = z.at<float>(y, x);
-        const cv::Vec3f ci = colour.at<cv::Vec3f>(y, x);
-        double best_cost = std::numeric_limits<double>::infinity();
-        int best = -1;
-        for (const auto& [dx, dy] :
-             {std::pair{-1, 0}, std::pair{1, 0}, std::pair{0, -1}, std::pair{0, 1}}) {
-          const int xn = x + dx, yn = y + dy;
-          if (xn < 0 || yn < 0 || xn >= W || yn >= H) continue;
-          const int ln = labels.at<int>(yn, xn);
-          if (ln < 0) continue;
-          const float zn = z.at<float>(yn, xn);
-          double cost;
-          if (zi > 0 && zn > 0) {
-            cost = std::abs(zi - zn) / zi;
-            if (cost > options_.max_grow_depth_ratio) continue;
-          } else {
-            cost = 1.0 + cv::norm(ci - colour.at<cv::Vec3f>(yn, xn));  // after any depth match
-          }
-          if (cost < best_cost) best_cost = cost, best = ln;
+  // previous one's labels, so the result does not depend on the scan order: a pass collects its
+  // new labels and writes them at its end. A pixel's choice depends only on its neighbours'
+  // labels, so after the first pass only the unlabelled neighbours of the pixels the previous
+  // pass labelled can change; the others (inside large holes, or next to segments too far away
+  // in depth) are not looked at again.
+  const cv::Vec3f* colour = colour_.ptr<cv::Vec3f>();
+  const double max_ratio = options_.max_grow_depth_ratio;
+  visited_.assign(size, -1);
+  for (int pass = 0; pass < options_.grow_passes && !candidates_.empty(); ++pass) {
+    grown_.clear();
+    for (const int i : candidates_) {
+      const int x = i % W, y = i / W;
+      const float zi = zf[i];
+      double best_cost = std::numeric_limits<double>::infinity();
+      int best = -1;
+      // The neighbours in the order left, right, up, down (the first of equal costs wins).
+      const int neighbours[4] = {x > 0 ? i - 1 : -1, x + 1 < W ? i + 1 : -1, y > 0 ? i - W : -1,
+                                 y + 1 < H ? i + W : -1};
+      for (const int j : neighbours) {
+        if (j < 0 || labels[j] < 0) continue;
+        const float zn = zf[j];
+        double cost;
+        if (zi > 0 && zn > 0) {
+          cost = std::abs(zi - zn) / zi;
+          if (cost > max_ratio) continue;
+        } else {
+          cost = 1.0 + cv::norm(colour[i] - colour[j]);  // after any depth match
         }
-        if (best >= 0) {
-          next.at<int>(y, x) = best;
-          changed = true;
-        }
+        if (cost < best_cost) best_cost = cost, best = labels[j];
+      }
+      if (best >= 0) grown_.push_back({i, best});
+    }
+    if (grown_.empty()) break;
+    for (const auto& [i, label] : grown_) labels[i] = label;
+    candidates_.clear();
+    for (const auto& [i, label] : grown_) {
+      const int x = i % W;
+      for (const int j : {x > 0 ? i - 1 : -1, x + 1 < W ? i + 1 : -1, i - W, i + W}) {
+        if (j < 0 || j >= size || labels[j] >= 0 || visited_[j] == pass) continue;
+        visited_[j] = pass;
+        candidates_.push_back(j);
       }
     }
-    labels = next;
-    if (!changed) break;
   }
-  s.labels = labels;
+  s.labels = labels_image;
   s.count = count;
-  edges *= 255 / 2;  // 1 → 127 (depth step), 2 → 254 (concave crease)
   return s;
 }
 

@@ -1,6 +1,8 @@
 #pragma once
 
 #include <opencv2/core.hpp>
+#include <utility>
+#include <vector>
 
 #include "sdoslam/dynamic/segmenter.h"
 
@@ -64,6 +66,13 @@ class GeometricSegmenter : public Segmenter {
   cv::Matx33d K_work_;  // the camera matrix at work resolution
   cv::Ptr<cv::rgbd::RgbdNormals> normals_;
   cv::Mat last_edges_;
+  // Per-frame work buffers, kept so that their memory is reused from frame to frame.
+  cv::Mat z_, bgr_, bgr_float_, colour_, points_, normals_out_, inside_;
+  cv::Mat components_, stats_, centroids_;
+  std::vector<uint8_t> usable_;             // the crease test may use the pixel's normal
+  std::vector<int> candidates_;             // pixels the next growth pass looks at
+  std::vector<int> visited_;                // the pass that last made the pixel a candidate
+  std::vector<std::pair<int, int>> grown_;  // (pixel, label) one growth pass gives
 };
 
 }  // namespace sdoslam
