@@ -215,7 +215,8 @@ TEST(SlamRobustness, RelocalizesAfterTheCameraMovedWhileTheViewWasBlocked) {
 // so the map is searched by projection around the pose carried on from before. Here the
 // descriptor candidates find the frame too; on the synthetic loop they did not (the part back
 // in view was seen only by keyframes outside the reference's neighbourhood), so the projection
-// search is also checked alone, with no descriptor candidates.
+// search is also checked with the descriptor search cut to the reference keyframe alone
+// (relocalization_candidates: 0), where without it that frame is lost.
 TEST(SlamRobustness, ResumesOnTheFirstFrameWithPartOfTheRoomBackInView) {
   testing::TempDir dir;
   RenderStaticRoom(dir, synth::CameraMotion::kHalfsphere, 80);

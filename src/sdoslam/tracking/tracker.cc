@@ -109,7 +109,8 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
     // after a relocalization has no velocity and only the reference keyframe's descriptors to
     // go on, and a mover that fills most of the view leaves the narrow windows too few matches
     // (synthetic loop, threaded: a frame with 48 % of the room in view lost right after one
-    // relocalized at 23 %).
+    // relocalized at 23 %). The failed TrackLocalMap has already counted its points as visible
+    // and found; on this rare path they are counted twice for the frame.
     result.matches = 0;
     ok = RelocalizeNearPrediction(frame) && TrackLocalMap(frame, &result);
   }

@@ -122,7 +122,8 @@ class Tracker {
   bool TrackReferenceKeyFrame(Frame& frame);
   // After tracking was lost: the pose from descriptor matches with nearby keyframes.
   bool Relocalize(Frame& frame);
-  // Relocalize's first try: a projection search of the local map around predicted poses.
+  // A projection search of the whole map around predicted poses, in wide windows: Relocalize's
+  // first try, and a tracked camera's last before it is called lost.
   bool RelocalizeNearPrediction(Frame& frame);
   bool TrackLocalMap(Frame& frame, TrackingResult* result);
   int OptimizeAndCount(Frame& frame);
