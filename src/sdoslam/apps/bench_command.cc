@@ -6,7 +6,7 @@
 #include <iostream>
 #include <memory>
 
-#include "sdoslam/apps/pipeline.h"
+#include "sdoslam/pipeline/pipeline.h"
 #include "sdoslam/apps/run_command.h"
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/memory.h"

@@ -5,7 +5,7 @@
 #include <iostream>
 #include <memory>
 
-#include "sdoslam/apps/pipeline.h"
+#include "sdoslam/pipeline/pipeline.h"
 #include "sdoslam/eval/report.h"
 #include "sdoslam/io/trajectory.h"
 #include "sdoslam/synth/sequence.h"

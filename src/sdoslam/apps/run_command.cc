@@ -2,18 +2,21 @@
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
+#include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <chrono>
 #include <csignal>
+#include <cstdio>
 #include <iostream>
 #include <memory>
 
 #include "sdoslam/apps/exit_codes.h"
-#include "sdoslam/apps/pipeline.h"
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/interrupt.h"
+#include "sdoslam/pipeline/pipeline.h"
 
 namespace sdoslam {
 namespace {
@@ -54,6 +57,36 @@ void WarnAboutOptionsWithoutEffect(const RunOverrides& o, RunMode mode) {
   }
 }
 
+// On a terminal, one progress line redrawn in place at most 4 times a second, and ended (also
+// when the run fails, so that the message starts on a line of its own); in a log file or a pipe,
+// a plain log line every 500 frames.
+class ProgressLine {
+ public:
+  ~ProgressLine() { End(); }
+  void Show(const RunProgress& p) {
+    if (!terminal_) {
+      if (p.frames_done % 500 == 0) spdlog::info("{}", FormatRunProgress(p));
+      return;
+    }
+    const auto now = std::chrono::steady_clock::now();
+    const bool last = p.frames_done == p.frames_requested;
+    if (drawn_ && !last && now - last_drawn_ < std::chrono::milliseconds(250)) return;
+    last_drawn_ = now;
+    drawn_ = true;
+    std::fprintf(stderr, "\r%s\033[K", FormatRunProgress(p).c_str());
+    std::fflush(stderr);
+  }
+  void End() {
+    if (drawn_) std::fprintf(stderr, "\n");
+    drawn_ = false;
+  }
+
+ private:
+  const bool terminal_ = isatty(STDERR_FILENO) == 1;
+  bool drawn_ = false;
+  std::chrono::steady_clock::time_point last_drawn_;
+};
+
 void RunSlam(const RunArgs& args, const RunCommandOptions& given) {
   // Everything that can be wrong with the inputs is found before the first frame.
   RunOptions run = LoadRunConfig(args.config);
@@ -74,7 +107,10 @@ void RunSlam(const RunArgs& args, const RunCommandOptions& given) {
   run.out = args.out;
   InterruptHandler interrupts;
   run.stop_requested = [] { return InterruptHandler::Requested(); };
+  ProgressLine progress_line;
+  run.progress = [&](const RunProgress& p) { progress_line.Show(p); };
   const RunSummary s = RunOnDataset(run);
+  progress_line.End();
   std::cout << FormatRunSummary(s) << "wrote " << args.out
             << "/CameraTrajectory.txt, KeyFrameTrajectory.txt, config.yaml, frames.csv"
             << (run.save_masks ? ", masks/, features.csv" : "")

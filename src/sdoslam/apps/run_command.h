@@ -3,7 +3,7 @@
 #include <CLI/CLI.hpp>
 #include <string>
 
-#include "sdoslam/apps/pipeline.h"
+#include "sdoslam/pipeline/pipeline.h"
 
 namespace sdoslam {
 

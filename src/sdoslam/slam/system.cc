@@ -153,12 +153,20 @@ TrackingResult System::TrackRgbd(size_t index, double timestamp, const cv::Mat& 
                                  const cv::Mat& depth, FrameTiming* timing,
                                  const cv::Mat& dynamic_labels, const cv::Mat& segments,
                                  const std::vector<uint8_t>& locked_segments) {
+  return Track(Prepare(index, timestamp, bgr, depth, dynamic_labels, segments, locked_segments),
+               timing);
+}
+
+PreparedFrame System::Prepare(size_t index, double timestamp, const cv::Mat& bgr,
+                              const cv::Mat& depth, const cv::Mat& dynamic_labels,
+                              const cv::Mat& segments,
+                              const std::vector<uint8_t>& locked_segments) const {
   const CameraOptions& c = geometry_->camera.options();
   if (bgr.cols != c.width || bgr.rows != c.height || depth.size() != bgr.size()) {
     throw Error("frame " + std::to_string(index) + ": images are not " + std::to_string(c.width) +
                 "x" + std::to_string(c.height));
   }
-  auto start = std::chrono::steady_clock::now();
+  const auto start = std::chrono::steady_clock::now();
   if (!dynamic_labels.empty() &&
       (dynamic_labels.size() != bgr.size() || dynamic_labels.type() != CV_8UC1)) {
     throw Error("frame " + std::to_string(index) +
@@ -169,19 +177,30 @@ TrackingResult System::TrackRgbd(size_t index, double timestamp, const cv::Mat& 
     throw Error("frame " + std::to_string(index) +
                 ": the segment image is not 32-bit single-channel of at most the frame's size");
   }
-  Frame frame(index, timestamp, bgr, depth, geometry_, extractor_);
-  if (!dynamic_labels.empty()) frame.SetLabels(dynamic_labels);
-  std::optional<ConsistencyInput> consistency;
-  if (!segments.empty()) {
-    consistency.emplace();
-    cv::cvtColor(bgr, consistency->gray, cv::COLOR_BGR2GRAY);
-    consistency->depth = depth;
-    consistency->segments = segments;
-    consistency->locked_segments = locked_segments;
+  // The grey image is made once: feature extraction and the consistency check share it.
+  cv::Mat gray;
+  if (bgr.channels() == 3) {
+    cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
+  } else {
+    gray = bgr;
   }
+  PreparedFrame prepared{Frame(index, timestamp, gray, depth, geometry_, extractor_), {}, 0};
+  if (!dynamic_labels.empty()) prepared.frame.SetLabels(dynamic_labels);
+  if (!segments.empty()) {
+    prepared.consistency.emplace();
+    prepared.consistency->gray = gray;
+    prepared.consistency->depth = depth;
+    prepared.consistency->segments = segments;
+    prepared.consistency->locked_segments = locked_segments;
+  }
+  prepared.features_ms = MsSince(start);
+  return prepared;
+}
+
+TrackingResult System::Track(PreparedFrame&& prepared, FrameTiming* timing) {
   FrameTiming t;
-  t.features_ms = MsSince(start);
-  start = std::chrono::steady_clock::now();
+  t.features_ms = prepared.features_ms;
+  auto start = std::chrono::steady_clock::now();
   KeyFrame* keyframe = nullptr;
   bool idle = true, accepts = true;
   if (!options_.sequential) {
@@ -192,8 +211,8 @@ TrackingResult System::TrackRgbd(size_t index, double timestamp, const cv::Mat& 
   TrackingResult result;
   {
     std::lock_guard<std::mutex> lock(map_mutex_);
-    result = tracker_->Track(std::move(frame), &keyframe, idle, accepts,
-                             consistency ? &*consistency : nullptr);
+    result = tracker_->Track(std::move(prepared.frame), &keyframe, idle, accepts,
+                             prepared.consistency ? &*prepared.consistency : nullptr);
     result.keyframes_alive = map_->GoodKeyFrames();
     result.map_points_alive = map_->GoodPoints();
   }

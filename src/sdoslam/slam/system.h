@@ -4,6 +4,7 @@
 #include <deque>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include "sdoslam/core/camera.h"
@@ -48,6 +49,14 @@ struct MappingRecord {
   MappingResult result;
 };
 
+// A frame made ready for tracking without the map: its ORB features with their labels, and the
+// consistency check's inputs. System::Prepare makes it, System::Track consumes it.
+struct PreparedFrame {
+  Frame frame;
+  std::optional<ConsistencyInput> consistency;
+  double features_ms = 0;
+};
+
 // The library's face: feed RGB-D frames in order, read trajectories. Local mapping runs inline
 // (sequential) or in a thread fed by a bounded queue; Shutdown() (or the destructor) lets it
 // finish the queued keyframes and joins it.
@@ -69,6 +78,17 @@ class System {
                            FrameTiming* timing = nullptr, const cv::Mat& dynamic_labels = cv::Mat(),
                            const cv::Mat& segments = cv::Mat(),
                            const std::vector<uint8_t>& locked_segments = {});
+
+  // TrackRgbd in two steps, so that a pipeline can prepare frame k + 1 (feature extraction,
+  // which needs no map) in one thread while frame k is tracked in another. Prepare validates the
+  // inputs (Error naming the frame) and may run concurrently with Track, but not with itself:
+  // one preparing thread at a time. Track takes frames in order. TrackRgbd(...) is exactly
+  // Track(Prepare(...)).
+  PreparedFrame Prepare(size_t index, double timestamp, const cv::Mat& bgr, const cv::Mat& depth,
+                        const cv::Mat& dynamic_labels = cv::Mat(),
+                        const cv::Mat& segments = cv::Mat(),
+                        const std::vector<uint8_t>& locked_segments = {}) const;
+  TrackingResult Track(PreparedFrame&& prepared, FrameTiming* timing = nullptr);
 
   // Every tracked frame (lost ones left out), with its pose relative to its reference keyframe
   // composed with that keyframe's current (refined) pose. T_world_camera per pose.

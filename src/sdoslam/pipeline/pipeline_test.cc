@@ -1,11 +1,14 @@
 // End-to-end: synthetic dynamic sequences with known ground truth, run in the three modes.
-#include "sdoslam/apps/pipeline.h"
+#include "sdoslam/pipeline/pipeline.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <fstream>
 #include <map>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <optional>
 
 #include "sdoslam/core/error.h"
@@ -518,6 +521,158 @@ TEST(PipelineLayouts, AnOmdSegmentRunsLikeItsTumCopy) {
   EXPECT_EQ(omd.evaluation->ate.errors.size(), tum.evaluation->ate.errors.size());
   EXPECT_NEAR(omd.evaluation->ate.translation.rmse, tum.evaluation->ate.translation.rmse, 1e-4);
   EXPECT_LT(tum.evaluation->ate.translation.rmse, 0.5);  // it tracked (conventional mode)
+}
+
+}  // namespace
+}  // namespace sdoslam
+
+namespace sdoslam {
+namespace {
+
+// A short sequence with people walking, for the stage tests.
+std::filesystem::path WriteShortWalk(const testing::TempDir& dir, int frames) {
+  synth::SynthOptions options;
+  options.scenario = "walking_xyz";
+  options.frames = frames;
+  const auto sequence = dir / "walk";
+  synth::WriteSequence(options, sequence, /*overwrite=*/true);
+  return sequence;
+}
+
+// Preparing ahead moves the front end and feature extraction of frame k + 1 into a thread that
+// runs while frame k is tracked. With mapping inline, that must change nothing: a stage that
+// delivered frames out of order, dropped one, or let the front end see them in another order
+// would change the trajectory and the per-frame labels.
+TEST(PipelineStages, PreparingAheadGivesTheInlineRunsTrajectoryBitForBit) {
+  testing::TempDir dir;
+  const auto sequence = WriteShortWalk(dir, 60);
+  struct Outcome {
+    Trajectory trajectory;
+    std::vector<int> dynamic_features;
+  };
+  auto run_with = [&](bool ahead, size_t capacity) {
+    RunOptions run =
+        SyntheticRun(sequence, dir / fmt::format("out_{}_{}", ahead, capacity), RunMode::kSdo);
+    run.slam.sequential = true;
+    run.prepare_ahead = ahead;
+    run.prepare_queue_capacity = capacity;
+    Outcome outcome;
+    run.after_frame = [&](const TrackingResult& r, const System&) {
+      outcome.dynamic_features.push_back(static_cast<int>(std::count_if(
+          r.feature_labels.begin(), r.feature_labels.end(), [](uint8_t l) { return l != 0; })));
+    };
+    const RunSummary s = RunOnDataset(run);
+    EXPECT_EQ(s.frames, 60u);
+    outcome.trajectory = s.trajectory;
+    return outcome;
+  };
+  const Outcome inline_run = run_with(false, 2);
+  ASSERT_GE(inline_run.trajectory.size(), 55u);
+  ASSERT_GT(
+      *std::max_element(inline_run.dynamic_features.begin(), inline_run.dynamic_features.end()),
+      0);  // the people were seen, so the front end's order matters
+  for (size_t capacity : {1u, 3u}) {
+    const Outcome ahead = run_with(true, capacity);
+    EXPECT_EQ(ahead.dynamic_features, inline_run.dynamic_features) << "capacity " << capacity;
+    ASSERT_EQ(ahead.trajectory.size(), inline_run.trajectory.size());
+    for (size_t i = 0; i < ahead.trajectory.size(); ++i) {
+      ASSERT_EQ(ahead.trajectory[i].timestamp, inline_run.trajectory[i].timestamp);
+      ASSERT_TRUE(ahead.trajectory[i].T_world_camera.matrix() ==
+                  inline_run.trajectory[i].T_world_camera.matrix())
+          << "frame " << i << ", capacity " << capacity;
+    }
+  }
+}
+
+// An error in the preparing thread (here: a colour image that cannot be decoded) reaches the
+// caller as the Error it was, naming the file, after the frames before it were tracked; it
+// neither terminates the process nor hangs the run.
+TEST(PipelineStages, AnUnreadableFrameInThePreparingThreadReachesTheCaller) {
+  testing::TempDir dir;
+  const auto sequence = WriteShortWalk(dir, 30);
+  std::vector<std::filesystem::path> rgb;
+  for (const auto& e : std::filesystem::directory_iterator(sequence / "rgb"))
+    rgb.push_back(e.path());
+  std::sort(rgb.begin(), rgb.end());
+  ASSERT_EQ(rgb.size(), 30u);
+  { std::ofstream(rgb[12], std::ios::trunc) << "not a png"; }
+  for (bool sequential_mapping : {true, false}) {
+    RunOptions run =
+        SyntheticRun(sequence, dir / fmt::format("out_{}", sequential_mapping), RunMode::kSdo);
+    run.slam.sequential = sequential_mapping;
+    run.prepare_ahead = true;
+    size_t frames_tracked_before = 0;
+    run.after_frame = [&](const TrackingResult& r, const System&) {
+      frames_tracked_before = r.index + 1;
+    };
+    try {
+      RunOnDataset(run);
+      ADD_FAILURE() << "the run went through an unreadable frame";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(rgb[12].filename().string()), std::string::npos)
+          << e.what();
+    }
+    EXPECT_EQ(frames_tracked_before, 12u);
+  }
+}
+
+// Stopping a run that prepares ahead ends it at once with what was tracked; the preparing
+// thread, possibly waiting on a full queue, is stopped and joined.
+TEST(PipelineStages, AnInterruptedRunThatPreparesAheadStopsCleanly) {
+  testing::TempDir dir;
+  const auto sequence = WriteShortWalk(dir, 40);
+  RunOptions run = SyntheticRun(sequence, dir / "out", RunMode::kConventional);
+  run.slam.sequential = false;
+  size_t seen = 0;
+  run.after_frame = [&](const TrackingResult&, const System&) { ++seen; };
+  run.stop_requested = [&] { return seen >= 15; };
+  const RunSummary s = RunOnDataset(run);
+  EXPECT_TRUE(s.interrupted);
+  EXPECT_EQ(s.frames, 15u);
+  EXPECT_EQ(seen, 15u);
+  EXPECT_GE(s.trajectory.size(), 13u);
+}
+
+// A library user's own segmentation: features under the caller's mask are never tracked, in
+// conventional mode too, and inputs of the wrong size fail naming the frame.
+TEST(PipelineStages, ACallersMaskTakesItsFeaturesOut) {
+  testing::TempDir dir;
+  const auto sequence = WriteShortWalk(dir, 2);
+  const RgbdDataset dataset(sequence, synth::SyntheticCamera());
+  PipelineOptions options;
+  options.camera = synth::SyntheticCamera();
+  Pipeline pipeline(options);
+  RgbdFrame frame = dataset.Load(0);
+  cv::Mat mask(frame.bgr.size(), CV_8U, cv::Scalar(0));
+  mask(cv::Rect(0, 0, mask.cols / 2, mask.rows)).setTo(255);  // the left half
+  const FrameOutput out =
+      pipeline.Track(RgbdInput{0, frame.timestamp, frame.bgr, frame.depth, {}}, mask);
+  const TrackingResult& r = out.tracking;
+  ASSERT_GT(r.feature_points.size(), 100u);
+  int left = 0, right = 0;
+  for (size_t k = 0; k < r.feature_points.size(); ++k) {
+    const bool in_mask = r.feature_points[k].x < mask.cols / 2 - 1;
+    const bool out_of_mask = r.feature_points[k].x >= mask.cols / 2 + 1;
+    if (in_mask) {
+      ++left;
+      EXPECT_NE(r.feature_labels[k], 0) << "feature " << k << " under the mask";
+    }
+    if (out_of_mask) {
+      ++right;
+      EXPECT_EQ(r.feature_labels[k], 0) << "feature " << k << " outside the mask";
+    }
+  }
+  EXPECT_GT(left, 20);
+  EXPECT_GT(right, 20);
+
+  cv::Mat small;
+  cv::resize(frame.bgr, small, cv::Size(320, 240));
+  try {
+    pipeline.Track(RgbdInput{1, frame.timestamp + 0.03, small, frame.depth, "x/frame1.png"});
+    ADD_FAILURE() << "a 320x240 image was taken";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("frame 1"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

@@ -1,4 +1,4 @@
-#include "sdoslam/apps/pipeline.h"
+#include "sdoslam/pipeline/pipeline.h"
 
 #include <ceres/version.h>
 #include <fmt/format.h>
@@ -7,14 +7,17 @@
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <exception>
 #include <opencv2/core/version.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <thread>
 
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
 #include "sdoslam/dynamic/overlay.h"
 #include "sdoslam/io/result_set.h"
+#include "sdoslam/pipeline/bounded_queue.h"
 
 namespace sdoslam {
 
@@ -150,6 +153,130 @@ std::string ResolvedConfig(const RunOptions& run) {
 
 }  // namespace
 
+Pipeline::Pipeline(const PipelineOptions& options) : options_(options) {
+  if (options_.mode == RunMode::kSdo) {
+    const cv::Size image_size(options_.camera.width, options_.camera.height);
+    front_end_ = std::make_unique<FrontEnd>(options_.front_end, options_.dataset_folder, image_size,
+                                            options_.rgb_paths, Camera(options_.camera).K());
+  }
+  slam_ = std::make_unique<System>(options_.camera, options_.slam);
+}
+
+Pipeline::~Pipeline() = default;
+
+FrameOutput Pipeline::Track(RgbdInput input, const cv::Mat& dynamic_mask) {
+  return Finish(Prepare(std::move(input), dynamic_mask));
+}
+
+StagedFrame Pipeline::Prepare(RgbdInput input, const cv::Mat& dynamic_mask) {
+  StagedFrame staged;
+  staged.started = std::chrono::steady_clock::now();
+  const cv::Size image_size(options_.camera.width, options_.camera.height);
+  if (input.bgr.size() != image_size || input.bgr.type() != CV_8UC3 ||
+      input.depth.size() != image_size || input.depth.type() != CV_32FC1) {
+    throw Error(fmt::format(
+        "frame {} ({}): expected a {}x{} 8-bit colour image and a 32-bit float depth image of "
+        "the same size",
+        input.index, input.rgb_path.string(), image_size.width, image_size.height));
+  }
+  if (!dynamic_mask.empty() &&
+      (dynamic_mask.size() != image_size || dynamic_mask.type() != CV_8UC1))
+    throw Error(fmt::format("frame {}: the dynamic mask is not 8-bit single-channel {}x{}",
+                            input.index, image_size.width, image_size.height));
+  cv::Mat segments;
+  if (front_end_) {
+    FrontEndFrame frame{input.index, input.timestamp, input.rgb_path, input.bgr, input.depth};
+    staged.sdo = front_end_->Process(frame, &staged.front_end_timing);
+    staged.labels = staged.sdo->labels;
+    segments = staged.sdo->segments.labels;
+    for (uint8_t l : staged.sdo->segment_labels)
+      staged.locked_segments.push_back(l == kKnownMovable);
+  }
+  if (!dynamic_mask.empty()) {
+    // The caller's mask joins the front end's verdict; where both speak, the front end's class
+    // is kept.
+    if (staged.labels.empty()) {
+      staged.labels = cv::Mat(image_size, CV_8U, cv::Scalar(kStatic));
+    } else {
+      staged.labels = staged.labels.clone();
+    }
+    staged.labels.setTo(kMovingUnknown, (dynamic_mask != 0) & (staged.labels == kStatic));
+  }
+  staged.slam.emplace(slam_->Prepare(input.index, input.timestamp, input.bgr, input.depth,
+                                     staged.labels, segments, staged.locked_segments));
+  staged.input = std::move(input);
+  return staged;
+}
+
+FrameOutput Pipeline::Finish(StagedFrame&& staged) {
+  if (!staged.slam) throw Error("Pipeline::Finish: a frame that was not prepared");
+  FrameOutput out;
+  out.tracking = slam_->Track(std::move(*staged.slam), &out.timing);
+  out.labels = staged.labels;
+  if (!out.tracking.check_segments.empty() && staged.sdo) {
+    // The consistency check's verdict joins the front end's in the masks, overlays and scores.
+    const cv::Mat& segments = staged.sdo->segments.labels;
+    const cv::Size image_size(staged.input.bgr.size());
+    out.labels = out.labels.clone();
+    cv::Mat turned(segments.size(), CV_8U, cv::Scalar(0));
+    for (int id : out.tracking.check_segments) turned.setTo(255, segments == id);
+    cv::resize(turned, turned, image_size, 0, 0, cv::INTER_NEAREST);
+    out.labels.setTo(kSceneFlow, turned & (out.labels == kStatic));
+  }
+  out.sdo = std::move(staged.sdo);
+  out.front_end_timing = staged.front_end_timing;
+  out.input = std::move(staged.input);
+  out.latency_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - staged.started)
+          .count();
+  return out;
+}
+
+namespace {
+
+// Runs `prepare(i)` for i = 0, 1, ... in a thread of its own, up to `capacity` frames ahead of
+// the caller, who takes them in order with Next(). Stopping early (Close, or destruction while
+// frames are queued) ends the thread cleanly; an exception in `prepare` reaches the caller from
+// Next() after the frames prepared before it.
+class PrepareStage {
+ public:
+  PrepareStage(size_t frames, size_t capacity, std::function<StagedFrame(size_t)> prepare)
+      : queue_(capacity), prepare_(std::move(prepare)) {
+    thread_ = std::thread([this, frames] {
+      try {
+        for (size_t i = 0; i < frames; ++i) {
+          if (!queue_.Push(prepare_(i))) return;  // closed by the consumer
+        }
+      } catch (...) {
+        error_ = std::current_exception();
+      }
+      queue_.Close();
+    });
+  }
+  ~PrepareStage() {
+    queue_.Close();
+    if (thread_.joinable()) thread_.join();
+  }
+  // The next frame, or nullopt at the end (every frame delivered, or the stage stopped).
+  // Rethrows the stage's exception once the frames before it are taken.
+  std::optional<StagedFrame> Next() {
+    std::optional<StagedFrame> staged = queue_.Pop();
+    if (!staged) {
+      if (thread_.joinable()) thread_.join();
+      if (error_) std::rethrow_exception(error_);
+    }
+    return staged;
+  }
+
+ private:
+  BoundedQueue<StagedFrame> queue_;
+  std::function<StagedFrame(size_t)> prepare_;
+  std::exception_ptr error_;  // written by the thread before it closes the queue
+  std::thread thread_;
+};
+
+}  // namespace
+
 RunSummary RunOnDataset(const RunOptions& options) {
   // An unwritable --out fails here, before anything else is read.
   ResultSetWriter results(options.out);
@@ -166,12 +293,6 @@ RunSummary RunOnDataset(const RunOptions& options) {
   std::vector<std::filesystem::path> rgb_paths;
   for (size_t i = 0; i < summary.requested; ++i) rgb_paths.push_back(dataset.entries()[i].rgb_path);
 
-  // Everything that can be wrong with the front end's inputs fails here, before the first frame.
-  std::unique_ptr<FrontEnd> front_end;
-  if (run.mode == RunMode::kSdo) {
-    front_end = std::make_unique<FrontEnd>(run.front_end, run.dataset, image_size, rgb_paths,
-                                           Camera(run.camera).K());
-  }
   if (run.mode == RunMode::kOracle) {
     for (const auto& rgb : rgb_paths) {
       const auto path = run.dataset / "dynamic" / rgb.filename();
@@ -190,45 +311,68 @@ RunSummary RunOnDataset(const RunOptions& options) {
 
   const std::string resolved = ResolvedConfig(run);
 
-  System slam(run.camera, run.slam);
+  // Everything that can be wrong with the front end's inputs fails here, before the first frame.
+  PipelineOptions pipeline_options;
+  pipeline_options.camera = run.camera;
+  pipeline_options.slam = run.slam;
+  pipeline_options.front_end = run.front_end;
+  pipeline_options.mode = run.mode;
+  pipeline_options.dataset_folder = run.dataset;
+  pipeline_options.rgb_paths = rgb_paths;
+  Pipeline pipeline(pipeline_options);
+  const System& slam = pipeline.slam();
+  // Loading and the stages that need no map, for frame i.
+  auto prepare = [&](size_t i) {
+    RgbdFrame frame = dataset.Load(i);
+    cv::Mat oracle;
+    if (run.mode == RunMode::kOracle)
+      oracle = LoadOracleLabels(run.dataset, rgb_paths[i], image_size);
+    return pipeline.Prepare(
+        RgbdInput{i, frame.timestamp, std::move(frame.bgr), std::move(frame.depth), rgb_paths[i]},
+        oracle);
+  };
+  // Threaded runs prepare frames ahead in a thread of their own (the front end and feature
+  // extraction of frame k + 1 overlap the tracking of frame k); sequential runs stay inline.
+  std::optional<PrepareStage> stage;
+  if (run.prepare_ahead.value_or(!run.slam.sequential))
+    stage.emplace(summary.requested, run.prepare_queue_capacity, prepare);
+
   std::string log =
       "index,timestamp,state,features,features_with_depth,dynamic_features,matches,inliers,"
       "keyframe,check_iterations,check_converged,check_reverted,check_measured,check_dynamic,"
       "culled_points,front_end_ms,segment_ms,detect_ms,flow_ms,classify_ms,features_ms,"
       "tracking_ms,mapping_ms,keyframes,map_points,check_rough_samples,check_static_samples,"
-      "check_replaced\n";
+      "check_replaced,latency_ms\n";
   std::string feature_log = "index,x,y,label\n";
-  std::vector<double> frame_ms, front_end_ms, mapping_ms, total_ms;
+  std::vector<double> frame_ms, front_end_ms, mapping_ms, total_ms, latency_ms;
   std::vector<double> segment_ms, detect_ms, flow_ms, classify_ms;
   int best_depth_features = 0;
+  const auto run_start = std::chrono::steady_clock::now();
   for (size_t i = 0; i < summary.requested; ++i) {
     if (run.stop_requested && run.stop_requested()) {
       summary.interrupted = true;
       break;
     }
-    const RgbdFrame frame = dataset.Load(i);
+    std::optional<StagedFrame> staged;
+    if (stage) {
+      staged = stage->Next();
+      if (!staged) break;  // cannot happen unless the stage ended early, which Next() throws
+    } else {
+      staged = prepare(i);
+    }
     summary.frames = i + 1;
-    cv::Mat labels, segments;
-    std::vector<uint8_t> locked_segments;
-    std::optional<SdoResult> sdo;
-    FrontEndTiming front_timing;
-    if (front_end) {
-      FrontEndFrame input{i, frame.timestamp, rgb_paths[i], frame.bgr, frame.depth};
-      sdo = front_end->Process(input, &front_timing);
-      labels = sdo->labels;
-      segments = sdo->segments.labels;
-      for (uint8_t l : sdo->segment_labels) locked_segments.push_back(l == kKnownMovable);
+    const bool has_front_end = staged->sdo.has_value();
+    const FrameOutput out = pipeline.Finish(std::move(*staged));
+    const TrackingResult& r = out.tracking;
+    const FrameTiming& timing = out.timing;
+    const FrontEndTiming& front_timing = out.front_end_timing;
+    if (has_front_end) {
       front_end_ms.push_back(front_timing.total());
       segment_ms.push_back(front_timing.segment_ms);
       detect_ms.push_back(front_timing.detect_ms);
       flow_ms.push_back(front_timing.flow_ms);
       classify_ms.push_back(front_timing.classify_ms);
-    } else if (run.mode == RunMode::kOracle) {
-      labels = LoadOracleLabels(run.dataset, rgb_paths[i], image_size);
     }
-    FrameTiming timing;
-    const TrackingResult r = slam.TrackRgbd(i, frame.timestamp, frame.bgr, frame.depth, &timing,
-                                            labels, segments, locked_segments);
     if (r.state == TrackingState::kNotInitialized) {
       best_depth_features = std::max(best_depth_features, r.features_with_depth);
       if (++summary.not_initialized >= 30 && slam.map().keyframes().empty()) {
@@ -239,29 +383,23 @@ RunSummary RunOnDataset(const RunOptions& options) {
                         run.slam.tracking.min_initial_depth_features));
       }
     }
-    if (!r.check_segments.empty()) {
-      // The consistency check's verdict joins the front end's in the masks, overlays and scores.
-      labels = labels.clone();
-      cv::Mat turned(segments.size(), CV_8U, cv::Scalar(0));
-      for (int id : r.check_segments) turned.setTo(255, segments == id);
-      cv::resize(turned, turned, image_size, 0, 0, cv::INTER_NEAREST);
-      labels.setTo(kSceneFlow, turned & (labels == kStatic));
-    }
+    const cv::Mat& labels = out.labels;
     summary.lost += r.state == TrackingState::kLost;
     frame_ms.push_back(timing.features_ms + timing.tracking_ms);
     total_ms.push_back(frame_ms.back() + front_timing.total());
+    latency_ms.push_back(out.latency_ms);
     const int dynamic_features = static_cast<int>(std::count_if(
         r.feature_labels.begin(), r.feature_labels.end(), [](uint8_t l) { return l != 0; }));
     log += fmt::format(
         "{},{:.6f},{},{},{},{},{},{},{},{},{},{},{},{},{},"
-        "{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{},{},{},{},{}\n",
+        "{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{},{},{},{},{},{:.2f}\n",
         i, r.timestamp, ToString(r.state), r.features, r.features_with_depth, dynamic_features,
         r.matches, r.inliers, r.keyframe ? 1 : 0, r.check_iterations, r.check_converged ? 1 : 0,
         r.check_reverted ? 1 : 0, r.check_measured, r.check_dynamic, r.culled_points,
         front_timing.total(), front_timing.segment_ms, front_timing.detect_ms, front_timing.flow_ms,
         front_timing.classify_ms, timing.features_ms, timing.tracking_ms, timing.mapping_ms,
         r.keyframes_alive, r.map_points_alive, r.check_rough_samples, r.check_static_samples,
-        r.check_replaced ? 1 : 0);
+        r.check_replaced ? 1 : 0, out.latency_ms);
     if (!labels.empty() && mask_evaluator) {
       mask_evaluator->AddFrame(rgb_paths[i], labels, r.feature_points, r.feature_labels);
     }
@@ -269,8 +407,8 @@ RunSummary RunOnDataset(const RunOptions& options) {
     if (run.save_overlays) {
       const cv::Mat empty_labels(image_size, CV_8U, cv::Scalar(0));
       const cv::Mat overlay =
-          DrawOverlay(frame.bgr, labels.empty() ? empty_labels : labels, sdo ? &*sdo : nullptr,
-                      r.feature_points, r.feature_labels);
+          DrawOverlay(out.input.bgr, labels.empty() ? empty_labels : labels,
+                      out.sdo ? &*out.sdo : nullptr, r.feature_points, r.feature_labels);
       const auto path = results.Stage("overlays/" + name);
       if (!cv::imwrite(path.string(), overlay)) throw IoError(path.string() + ": cannot write");
     }
@@ -287,8 +425,20 @@ RunSummary RunOnDataset(const RunOptions& options) {
     spdlog::debug("frame {} {} inliers {} keyframe {}", i, ToString(r.state), r.inliers,
                   r.keyframe);
     if (run.after_frame) run.after_frame(r, slam);
+    if (run.progress) {
+      run.progress(
+          {summary.frames, summary.requested,
+           std::chrono::duration<double>(std::chrono::steady_clock::now() - run_start).count(),
+           r.state, r.keyframes_alive});
+    }
   }
-  slam.Shutdown();  // the mapping thread finishes the queued keyframes
+  stage.reset();               // an interrupted run stops preparing frames
+  pipeline.slam().Shutdown();  // the mapping thread finishes the queued keyframes
+  const double run_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - run_start).count();
+  summary.wall_ms_per_frame =
+      summary.frames > 0 ? 1000.0 * run_seconds / static_cast<double>(summary.frames) : 0;
+  summary.median_latency_ms = ComputeErrorStats(latency_ms).median;
   summary.trajectory = slam.CameraTrajectory();
   summary.mapping = slam.MappingRecords();
   for (const MappingRecord& m : summary.mapping) mapping_ms.push_back(m.ms);
@@ -329,16 +479,26 @@ RunSummary RunOnDataset(const RunOptions& options) {
   return summary;
 }
 
+std::string FormatRunProgress(const RunProgress& p) {
+  const double fps = p.elapsed_s > 0 ? static_cast<double>(p.frames_done) / p.elapsed_s : 0.0;
+  return fmt::format("frame {}/{}  {:.1f} fps  {}  {} keyframes", p.frames_done, p.frames_requested,
+                     fps, ToString(p.state), p.keyframes_alive);
+}
+
 std::string FormatRunSummary(const RunSummary& s) {
   return fmt::format(
       "{} frames: {} tracked, {} lost, {} before initialisation; {} keyframes, {} map points\n"
       "median per frame: {:.1f} ms (features + tracking); median local mapping per keyframe: "
-      "{:.1f} ms{}\n",
+      "{:.1f} ms{}\n"
+      "throughput: {:.1f} ms per frame ({:.1f} fps, loading and every stage included); median "
+      "latency {:.1f} ms\n",
       s.frames, s.tracked, s.lost, s.not_initialized, s.keyframes, s.map_points, s.median_frame_ms,
       s.median_mapping_ms,
       s.median_front_end_ms > 0
           ? fmt::format("; dynamic front end {:.1f} ms per frame", s.median_front_end_ms)
-          : "");
+          : "",
+      s.wall_ms_per_frame, s.wall_ms_per_frame > 0 ? 1000.0 / s.wall_ms_per_frame : 0.0,
+      s.median_latency_ms);
 }
 
 }  // namespace sdoslam

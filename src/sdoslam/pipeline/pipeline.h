@@ -1,0 +1,190 @@
+#pragma once
+
+#include <chrono>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "sdoslam/core/camera.h"
+#include "sdoslam/dynamic/front_end.h"
+#include "sdoslam/eval/mask_metrics.h"
+#include "sdoslam/eval/report.h"
+#include "sdoslam/io/dataset.h"
+#include "sdoslam/io/trajectory.h"
+#include "sdoslam/slam/system.h"
+
+namespace sdoslam {
+
+// How features on moving things are treated.
+enum class RunMode {
+  kConventional,  // no front end: every feature is used (ORB-SLAM2 behaviour)
+  kSdo,           // the paper's front end decides (segments + detections + motion boundaries)
+  kOracle,        // ground-truth dynamic masks of a synthetic sequence: the ceiling for kSdo
+};
+const char* ToString(RunMode mode);
+RunMode ParseRunMode(const std::string& name);  // throws Error naming the known modes
+
+// One RGB-D frame as a camera or a dataset gives it.
+struct RgbdInput {
+  size_t index = 0;  // frames are numbered 0, 1, 2, ... in the order they are tracked
+  double timestamp = 0;
+  cv::Mat bgr;                     // CV_8UC3
+  cv::Mat depth;                   // CV_32FC1 metres (0 = none), registered to the colour image
+  std::filesystem::path rgb_path;  // file-backed front ends find their per-frame data by its name
+};
+
+// What the pipeline is made of: the camera, SLAM, and how moving things are found.
+struct PipelineOptions {
+  CameraOptions camera;
+  SlamOptions slam;
+  FrontEndOptions front_end;
+  RunMode mode = RunMode::kConventional;
+  // kSdo with file backends: the folder their relative paths resolve against, and every frame's
+  // rgb path (the detections and masks files are checked against them when the pipeline is made).
+  std::filesystem::path dataset_folder;
+  std::vector<std::filesystem::path> rgb_paths;
+};
+
+// A frame after the stages that need no map: the dynamic front end's verdict and the ORB
+// features. Made by Pipeline::Prepare, consumed by Pipeline::Finish.
+struct StagedFrame {
+  RgbdInput input;
+  std::optional<SdoResult> sdo;  // kSdo
+  cv::Mat labels;                // the per-pixel DynamicLabel image tracking uses; empty: none
+  std::vector<uint8_t> locked_segments;
+  FrontEndTiming front_end_timing;
+  std::optional<PreparedFrame> slam;
+  std::chrono::steady_clock::time_point started;  // when Prepare began: the frame's latency
+};
+
+// One frame's outcome.
+struct FrameOutput {
+  RgbdInput input;
+  TrackingResult tracking;
+  // The final per-pixel verdict: the front end's labels, with the segments the consistency check
+  // judged moving marked kSceneFlow (empty in conventional mode without a caller's mask).
+  cv::Mat labels;
+  std::optional<SdoResult> sdo;
+  FrameTiming timing;
+  FrontEndTiming front_end_timing;
+  double latency_ms = 0;  // from the start of Prepare to the end of Finish
+};
+
+// The whole system for one camera: the dynamic front end (per `mode`) and SLAM, one frame at a
+// time. Use Track for a live camera (everything inline). A pipelined caller runs Prepare for
+// frame k + 1 in one thread while Finish tracks frame k in another (RunOnDataset does this
+// unless the run is sequential): Prepare needs no map, and the front end never looks at
+// tracking's results, so the two orders give the same trajectory.
+class Pipeline {
+ public:
+  // Throws Error for bad options, unknown backends and missing or mismatched front-end files.
+  explicit Pipeline(const PipelineOptions& options);
+  ~Pipeline();
+  Pipeline(const Pipeline&) = delete;
+  Pipeline& operator=(const Pipeline&) = delete;
+
+  // Prepare then Finish. `dynamic_mask`: optional CV_8U image of the frame's size from the
+  // caller's own model (non-zero = a moving thing): features there are never tracked nor mapped,
+  // in every mode, on top of what the front end finds.
+  FrameOutput Track(RgbdInput input, const cv::Mat& dynamic_mask = cv::Mat());
+
+  // The stages that need no map. One thread at a time, frames in order. Throws Error for inputs
+  // of the wrong size or type, naming the frame.
+  StagedFrame Prepare(RgbdInput input, const cv::Mat& dynamic_mask = cv::Mat());
+  // Tracking (and, sequential, local mapping). Frames in the order they were prepared.
+  FrameOutput Finish(StagedFrame&& staged);
+
+  System& slam() { return *slam_; }
+  const System& slam() const { return *slam_; }
+  const PipelineOptions& options() const { return options_; }
+
+ private:
+  PipelineOptions options_;
+  std::unique_ptr<FrontEnd> front_end_;
+  std::unique_ptr<System> slam_;
+};
+
+// Where a run is, for a progress line.
+struct RunProgress {
+  size_t frames_done = 0, frames_requested = 0;
+  double elapsed_s = 0;
+  TrackingState state = TrackingState::kNotInitialized;
+  size_t keyframes_alive = 0;
+};
+
+// "frame 120/859  29.8 fps  ok  14 keyframes": one line of a run's progress (no newline).
+std::string FormatRunProgress(const RunProgress& progress);
+
+struct RunOptions {
+  std::filesystem::path dataset;
+  std::filesystem::path associations;  // optional explicit rgb/depth associations
+  DatasetLayout layout = DatasetLayout::kAuto;
+  std::filesystem::path out;
+  CameraOptions camera;
+  SlamOptions slam;
+  FrontEndOptions front_end;
+  RunMode mode = RunMode::kConventional;
+  size_t max_frames = 0;       // 0: all
+  bool save_overlays = false;  // out/overlays/<rgb name>.png
+  bool save_masks = false;     // out/masks/<rgb name>.png (label image) and out/features.csv
+  // Called after each frame is tracked, e.g. to look at the map as it grows (with a mapping
+  // thread, the map may be changing: read it under your own care, or run sequentially).
+  std::function<void(const TrackingResult& result, const System& slam)> after_frame;
+  // Polled before each frame: when it returns true the run stops taking frames and commits
+  // what it has, marked "interrupted" (sdoslam run wires SIGINT/SIGTERM to it).
+  std::function<bool()> stop_requested;
+  // Called after each frame (sdoslam run draws its progress line with it).
+  std::function<void(const RunProgress&)> progress;
+  // Frames are loaded and prepared (front end, feature extraction) in a thread of their own, at
+  // most prepare_queue_capacity frames ahead of tracking. Unset: when mapping is threaded
+  // (slam.sequential false). Either way the trajectory is the one the inline order gives, up to
+  // the mapping thread's timing.
+  std::optional<bool> prepare_ahead;
+  size_t prepare_queue_capacity = 2;
+};
+
+// Reads a run's config file: `mode:` and the camera:, SLAM and dynamic: sections into the
+// matching RunOptions fields (the rest stay default), and the `run:` section a run's own
+// config.yaml has (dataset, layout, associations, max_frames, sequential, save_*), so that a
+// config.yaml reruns its run. `versions:` is informative and not compared. Unknown keys are
+// errors naming the file and line.
+RunOptions LoadRunConfig(const std::filesystem::path& config);
+
+struct RunSummary {
+  size_t frames = 0;     // frames processed (fewer than asked for when interrupted)
+  size_t requested = 0;  // frames the run was asked to process
+  bool interrupted = false;
+  size_t tracked = 0, lost = 0, not_initialized = 0;
+  size_t keyframes = 0, map_points = 0;
+  double median_frame_ms = 0;              // features + tracking
+  double median_front_end_ms = 0;          // the dynamic front end (0 in conventional mode)
+  FrontEndTiming median_front_end_stages;  // each stage's own median
+  double median_total_ms = 0;              // front end + features + tracking, per frame
+  double median_mapping_ms = 0;            // per keyframe
+  // Throughput: wall-clock seconds of the whole run (loading, every stage and the threads'
+  // overlap included) per frame; and the median latency, from a frame's load to its pose.
+  double wall_ms_per_frame = 0;
+  double median_latency_ms = 0;
+  std::vector<MappingRecord> mapping;  // per keyframe, in processing order
+  Trajectory trajectory;
+  Trajectory keyframe_trajectory;                // the keyframes alive at the end
+  std::optional<EstimateEvaluation> evaluation;  // when the dataset has ground truth
+  std::optional<EstimateEvaluation> keyframe_evaluation;
+  std::optional<MaskEvaluation>
+      masks;  // when the dataset has ground-truth masks (not conventional)
+};
+
+// Runs SLAM over the sequence and writes CameraTrajectory.txt, KeyFrameTrajectory.txt,
+// config.yaml (resolved: it reruns the run), frames.csv (per-frame log) and, when asked, masks/,
+// features.csv and overlays/ into `out` as one result set with its manifest.json (see
+// io/result_set.h): an earlier set there is replaced as a whole or not at all. Throws Error for
+// bad inputs and IoError for an unwritable `out` before the first frame, and Error when the first
+// 30 frames cannot start the map (too little depth).
+RunSummary RunOnDataset(const RunOptions& options);
+
+std::string FormatRunSummary(const RunSummary& summary);
+
+}  // namespace sdoslam
