@@ -27,9 +27,15 @@ LocalMapper::LocalMapper(Map* map, const LocalMapperOptions& options)
 
 namespace {
 
-// A lock that is only taken when there is a mutex (threaded runs).
-std::unique_lock<std::mutex> LockIf(std::mutex* mutex) {
-  return mutex != nullptr ? std::unique_lock<std::mutex>(*mutex) : std::unique_lock<std::mutex>();
+// A lock that is only taken when there is a mutex (threaded runs); the wait is added to
+// `*wait_ms`.
+std::unique_lock<std::mutex> LockIf(std::mutex* mutex, double* wait_ms) {
+  if (mutex == nullptr) return std::unique_lock<std::mutex>();
+  const auto start = std::chrono::steady_clock::now();
+  std::unique_lock<std::mutex> lock(*mutex);
+  *wait_ms +=
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return lock;
 }
 
 }  // namespace
@@ -38,7 +44,7 @@ MappingResult LocalMapper::Process(KeyFrame* kf, std::mutex* map_mutex) {
   MappingResult result;
   bool adjust = false;
   {
-    auto lock = LockIf(map_mutex);
+    auto lock = LockIf(map_mutex, &result.lock_wait_ms);
     auto start = std::chrono::steady_clock::now();
     // No pointer to a culled point is held here: recent points are pruned first.
     std::erase_if(recent_points_, [](const MapPoint* p) { return p->bad; });
@@ -57,7 +63,7 @@ MappingResult LocalMapper::Process(KeyFrame* kf, std::mutex* map_mutex) {
   auto start = std::chrono::steady_clock::now();
   if (adjust) LocalBundleAdjustment(kf, &result, map_mutex);
   result.ba_ms = MsSince(start);
-  auto lock = LockIf(map_mutex);
+  auto lock = LockIf(map_mutex, &result.lock_wait_ms);
   start = std::chrono::steady_clock::now();
   result.culled_keyframes = CullKeyFrames(kf);
   result.cull_ms = MsSince(start);
@@ -263,7 +269,7 @@ void LocalMapper::LocalBundleAdjustment(KeyFrame* kf, MappingResult* result,
   // Built under the lock, solved without it, written back under it to what still exists:
   // tracking goes on while Ceres runs. Only this thread frees points or culls keyframes, so the
   // pointers stay valid; a point or keyframe culled meanwhile by tracking is skipped.
-  auto lock = LockIf(map_mutex);
+  auto lock = LockIf(map_mutex, &result->lock_wait_ms);
   const std::vector<KeyFrame*> local = LocalWindow(kf);
   std::set<uint64_t> local_ids;
   for (const KeyFrame* k : local) local_ids.insert(k->id);
@@ -328,7 +334,11 @@ void LocalMapper::LocalBundleAdjustment(KeyFrame* kf, MappingResult* result,
   const auto solve_start = std::chrono::steady_clock::now();
   const std::vector<bool> inlier = BundleAdjust(intrinsics, &ba, options_.bundle_adjustment);
   result->ba_solve_ms = MsSince(solve_start);
-  if (map_mutex != nullptr) lock.lock();
+  if (map_mutex != nullptr) {
+    const auto wait_start = std::chrono::steady_clock::now();
+    lock.lock();
+    result->lock_wait_ms += MsSince(wait_start);
+  }
   for (size_t k = 0; k < local.size(); ++k) {
     if (!local[k]->bad) local[k]->frame.T_camera_world = ba.poses[k];
   }

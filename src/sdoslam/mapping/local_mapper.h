@@ -36,6 +36,7 @@ struct MappingResult {
   // Milliseconds per stage: keyframe insertion and point culling, triangulation, fusion, local
   // bundle adjustment (its solve without the map lock), keyframe culling.
   double insert_ms = 0, triangulate_ms = 0, fuse_ms = 0, ba_ms = 0, ba_solve_ms = 0, cull_ms = 0;
+  double lock_wait_ms = 0;  // threaded: waiting for the map while tracking held it
 };
 
 // ORB-SLAM's local mapping for RGB-D: insert a keyframe (observations, covisibility), cull

@@ -342,7 +342,7 @@ RunSummary RunOnDataset(const RunOptions& options) {
       "keyframe,check_iterations,check_converged,check_reverted,check_measured,check_dynamic,"
       "culled_points,front_end_ms,segment_ms,detect_ms,flow_ms,classify_ms,features_ms,"
       "tracking_ms,mapping_ms,keyframes,map_points,check_rough_samples,check_static_samples,"
-      "check_replaced,latency_ms\n";
+      "check_replaced,latency_ms,lock_wait_ms\n";
   std::string feature_log = "index,x,y,label\n";
   std::vector<double> frame_ms, front_end_ms, mapping_ms, total_ms, latency_ms;
   std::vector<double> segment_ms, detect_ms, flow_ms, classify_ms;
@@ -392,14 +392,14 @@ RunSummary RunOnDataset(const RunOptions& options) {
         r.feature_labels.begin(), r.feature_labels.end(), [](uint8_t l) { return l != 0; }));
     log += fmt::format(
         "{},{:.6f},{},{},{},{},{},{},{},{},{},{},{},{},{},"
-        "{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{},{},{},{},{},{:.2f}\n",
+        "{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{},{},{},{},{},{:.2f},{:.2f}\n",
         i, r.timestamp, ToString(r.state), r.features, r.features_with_depth, dynamic_features,
         r.matches, r.inliers, r.keyframe ? 1 : 0, r.check_iterations, r.check_converged ? 1 : 0,
         r.check_reverted ? 1 : 0, r.check_measured, r.check_dynamic, r.culled_points,
         front_timing.total(), front_timing.segment_ms, front_timing.detect_ms, front_timing.flow_ms,
         front_timing.classify_ms, timing.features_ms, timing.tracking_ms, timing.mapping_ms,
         r.keyframes_alive, r.map_points_alive, r.check_rough_samples, r.check_static_samples,
-        r.check_replaced ? 1 : 0, out.latency_ms);
+        r.check_replaced ? 1 : 0, out.latency_ms, timing.lock_wait_ms);
     if (!labels.empty() && mask_evaluator) {
       mask_evaluator->AddFrame(rgb_paths[i], labels, r.feature_points, r.feature_labels);
     }
@@ -459,6 +459,19 @@ RunSummary RunOnDataset(const RunOptions& options) {
   WriteTumTrajectory(results.Stage("KeyFrameTrajectory.txt"), summary.keyframe_trajectory);
   results.WriteText("config.yaml", resolved);
   results.WriteText("frames.csv", log);
+  std::string mapping_log =
+      "frame_index,ms,insert_ms,triangulate_ms,fuse_ms,ba_ms,ba_solve_ms,cull_ms,lock_wait_ms,"
+      "culled_points,triangulated_points,fused_points,local_keyframes,fixed_keyframes,"
+      "local_points,culled_keyframes,freed_points\n";
+  for (const MappingRecord& m : summary.mapping) {
+    const MappingResult& r = m.result;
+    mapping_log += fmt::format(
+        "{},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{},{},{},{},{},{},{},{}\n",
+        m.frame_index, m.ms, r.insert_ms, r.triangulate_ms, r.fuse_ms, r.ba_ms, r.ba_solve_ms,
+        r.cull_ms, r.lock_wait_ms, r.culled_points, r.triangulated_points, r.fused_points,
+        r.local_keyframes, r.fixed_keyframes, r.local_points, r.culled_keyframes, r.freed_points);
+  }
+  results.WriteText("mapping.csv", mapping_log);
   if (run.save_masks) results.WriteText("features.csv", feature_log);
   results.Commit(summary.interrupted ? "interrupted" : "complete",
                  {{"mode", ToString(run.mode)},

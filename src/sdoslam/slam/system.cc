@@ -210,9 +210,13 @@ TrackingResult System::Track(PreparedFrame&& prepared, FrameTiming* timing) {
   }
   TrackingResult result;
   {
-    std::lock_guard<std::mutex> lock(map_mutex_);
+    const auto wait_start = std::chrono::steady_clock::now();
+    std::unique_lock<std::mutex> lock(map_mutex_);
+    t.lock_wait_ms = MsSince(wait_start);
     result = tracker_->Track(std::move(prepared.frame), &keyframe, idle, accepts,
-                             prepared.consistency ? &*prepared.consistency : nullptr);
+                             prepared.consistency ? &*prepared.consistency : nullptr,
+                             options_.sequential ? nullptr : &lock);
+    t.lock_wait_ms += tracker_->last_lock_wait_ms();
     result.keyframes_alive = map_->GoodKeyFrames();
     result.map_points_alive = map_->GoodPoints();
   }

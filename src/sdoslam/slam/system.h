@@ -40,6 +40,7 @@ void WriteSlamOptions(const SlamOptions& options, YAML::Emitter* out);
 // Timings of one frame, milliseconds.
 struct FrameTiming {
   double features_ms = 0, tracking_ms = 0, mapping_ms = 0;
+  double lock_wait_ms = 0;  // of tracking_ms: waiting for the map while local mapping held it
 };
 
 // Local mapping of one keyframe.

@@ -46,9 +46,13 @@ Tracker::Tracker(Map* map, const TrackerOptions& options) : map_(map), options_(
 }
 
 TrackingResult Tracker::Track(Frame frame, KeyFrame** new_keyframe, bool mapping_idle,
-                              bool mapping_accepts, const ConsistencyInput* consistency) {
+                              bool mapping_accepts, const ConsistencyInput* consistency,
+                              std::unique_lock<std::mutex>* map_lock) {
+  map_lock_ = map_lock;
+  lock_wait_ms_ = 0;
   TrackingResult result =
       TrackFrame(std::move(frame), new_keyframe, mapping_idle, mapping_accepts, consistency);
+  map_lock_ = nullptr;
   // Nothing of this frame's matching is held past this point (see Map::CollectGarbage).
   local_points_.clear();
   map_->FrameFinished();
@@ -225,8 +229,9 @@ int Tracker::OptimizeAndCount(Frame& frame) {
     observations.push_back(frame.Observation(static_cast<int>(i)));
   }
   if (index.size() < 10) return 0;
-  const PoseOptimizationResult r =
-      OptimizePose(frame.geometry->intrinsics, frame.T_camera_world, points, observations);
+  const PoseOptimizationResult r = WithoutMapLock([&] {
+    return OptimizePose(frame.geometry->intrinsics, frame.T_camera_world, points, observations);
+  });
   frame.T_camera_world = r.T_camera_world;
   int inliers = 0;
   for (size_t k = 0; k < index.size(); ++k) {
@@ -544,7 +549,9 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
   }
   std::vector<cv::Point2f> past_points;
   std::vector<uint8_t> found;
-  TrackPointsBack(o, input.gray, past->gray, tracked_points, &past_points, &found, &guesses);
+  WithoutMapLock([&] {
+    TrackPointsBack(o, input.gray, past->gray, tracked_points, &past_points, &found, &guesses);
+  });
 
   const std::vector<cv::Point2f> past_undistorted = camera.UndistortPoints(past_points);
   const Eigen::Isometry3d T_world_past = past->T_camera_world.inverse();
@@ -603,8 +610,10 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
     }
     std::vector<cv::Point2f> near_points;
     std::vector<uint8_t> near_found;
-    TrackPointsBack(o, input.gray, near_past->gray, retry_points, &near_points, &near_found,
-                    &retry_guesses);
+    WithoutMapLock([&] {
+      TrackPointsBack(o, input.gray, near_past->gray, retry_points, &near_points, &near_found,
+                      &retry_guesses);
+    });
     const std::vector<cv::Point2f> near_undistorted = camera.UndistortPoints(near_points);
     for (size_t q = 0; q < retry.size(); ++q) {
       if (!near_found[q]) continue;
@@ -630,7 +639,8 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
   std::vector<int> sample_segment;
   if (o.static_motion.enabled) {
     const StaticMotionOptions& so = o.static_motion;
-    const std::vector<cv::Point2f> samples = GridCorners(so, input.gray, input.depth);
+    const std::vector<cv::Point2f> samples =
+        WithoutMapLock([&] { return GridCorners(so, input.gray, input.depth); });
     const std::vector<cv::Point2f> samples_undistorted = camera.UndistortPoints(samples);
     std::vector<cv::Point2f> sample_guesses;
     for (size_t s = 0; s < samples.size(); ++s) {
@@ -641,8 +651,10 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
     }
     std::vector<cv::Point2f> sample_past;
     std::vector<uint8_t> sample_found;
-    TrackPointsBack(o, input.gray, past->gray, samples, &sample_past, &sample_found,
-                    &sample_guesses);
+    WithoutMapLock([&] {
+      TrackPointsBack(o, input.gray, past->gray, samples, &sample_past, &sample_found,
+                      &sample_guesses);
+    });
     const std::vector<cv::Point2f> sample_past_undistorted = camera.UndistortPoints(sample_past);
     std::vector<MotionCorrespondence> correspondences;
     std::vector<cv::Point2f> sample_points;  // those that vote, in sample_ends' order
@@ -671,8 +683,10 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
     }
     sample_segment =
         SegmentsAt(input.segments, cv::Size(camera.width(), camera.height()), sample_points);
-    const StaticMotionResult widest =
-        FindStaticMotion(so, frame.geometry->intrinsics, correspondences, frame.T_camera_world);
+    const StaticMotionResult widest = WithoutMapLock([&] {
+      return FindStaticMotion(so, frame.geometry->intrinsics, correspondences,
+                              frame.T_camera_world);
+    });
     result->check_rough_samples = widest.rough_inliers;
     result->check_static_samples = widest.inliers;
     if (widest.replaced) {

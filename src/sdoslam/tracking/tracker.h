@@ -1,7 +1,9 @@
 #pragma once
 
+#include <chrono>
 #include <deque>
 #include <memory>
+#include <mutex>
 #include <vector>
 
 #include "sdoslam/map/map.h"
@@ -101,8 +103,13 @@ class Tracker {
   // `mapping_accepts`: a keyframe may be queued now.
   // `consistency`: when given (and enabled in the options), the scene-flow consistency check
   // refines the static set and the pose, and inconsistent landmarks are culled.
+  // `map_lock`: threaded runs pass the lock on the map they hold; Track releases it while it
+  // works on copies and images only (Lucas–Kanade of the check, the static world's motion, the
+  // pose solves), so that local mapping is not held up by them. Memory stays valid meanwhile:
+  // culled points are freed only after the frame finishes (Map::CollectGarbage).
   TrackingResult Track(Frame frame, KeyFrame** new_keyframe, bool mapping_idle = true,
-                       bool mapping_accepts = true, const ConsistencyInput* consistency = nullptr);
+                       bool mapping_accepts = true, const ConsistencyInput* consistency = nullptr,
+                       std::unique_lock<std::mutex>* map_lock = nullptr);
 
   // Each frame's pose relative to its reference keyframe, so that the trajectory follows the
   // keyframes as mapping refines them.
@@ -113,8 +120,30 @@ class Tracker {
   };
   const std::vector<TrajectoryEntry>& trajectory() const { return trajectory_; }
   TrackingState state() const { return state_; }
+  // Of the last Track: milliseconds spent taking the map lock back (see Track's map_lock).
+  double last_lock_wait_ms() const { return lock_wait_ms_; }
 
  private:
+  // Runs `work` without the map lock when Track was given one (see Track); `work` must touch
+  // nothing of the map.
+  template <typename Work>
+  auto WithoutMapLock(Work&& work) {
+    if (map_lock_ == nullptr || !map_lock_->owns_lock()) return work();
+    struct Relock {
+      std::unique_lock<std::mutex>* lock;
+      double* wait_ms;
+      ~Relock() {
+        const auto start = std::chrono::steady_clock::now();
+        lock->lock();
+        *wait_ms +=
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+                .count();
+      }
+    };
+    map_lock_->unlock();
+    Relock relock{map_lock_, &lock_wait_ms_};
+    return work();
+  }
   TrackingResult TrackFrame(Frame frame, KeyFrame** new_keyframe, bool mapping_idle,
                             bool mapping_accepts, const ConsistencyInput* consistency);
   bool Initialize(Frame& frame);
@@ -142,6 +171,8 @@ class Tracker {
                       const std::vector<MapPoint*>& judged_dynamic, TrackingResult* result);
 
   Map* map_;
+  std::unique_lock<std::mutex>* map_lock_ = nullptr;  // during Track, when given
+  double lock_wait_ms_ = 0;
   TrackerOptions options_;
   TrackingState state_ = TrackingState::kNotInitialized;
   std::unique_ptr<Frame> last_frame_;
