@@ -6,6 +6,7 @@
 #include <iostream>
 #include <memory>
 
+#include "sdoslam/apps/bench_matrix.h"
 #include "sdoslam/pipeline/pipeline.h"
 #include "sdoslam/apps/run_command.h"
 #include "sdoslam/core/error.h"
@@ -27,15 +28,13 @@ struct BenchArgs {
   bool threaded = false;
   std::string work = "sdoslam_bench";
   RunOverrides overrides;
+  // The matrix (bench_matrix.h): given --sequences, sequences × modes → one table.
+  std::vector<std::string> sequences;
+  std::vector<std::string> modes = BenchMatrixArgs().modes;
+  std::string table;
 };
 
 double Median(const std::vector<double>& v) { return ComputeErrorStats(v).median; }
-
-double Percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[static_cast<size_t>(q * static_cast<double>(v.size() - 1) + 0.5)];
-}
 
 // The state at the end of one block of frames, sampled while the run goes on.
 struct BlockEnd {
@@ -186,28 +185,69 @@ void RunBench(const BenchArgs& args) {
 
 void AddBenchCommand(CLI::App& app) {
   auto args = std::make_shared<BenchArgs>();
-  CLI::App* cmd = app.add_subcommand("bench", "time SLAM runs (medians over repeated runs)");
-  cmd->add_option("--dataset", args->dataset,
-                  "sequence (default: a synthetic sequence, --scenario, --motion, --frames)");
-  cmd->add_option("--scenario", args->scenario, "built-in sequence: synthetic scenario")
-      ->capture_default_str();
-  cmd->add_option("--motion", args->motion, "built-in sequence: camera motion")
-      ->capture_default_str();
-  cmd->add_option("--frames", args->frames, "built-in sequence: frames (rendered once into --work)")
+  CLI::App* cmd = app.add_subcommand(
+      "bench",
+      "time SLAM runs (medians over repeated runs); with --sequences, the table of sequences × "
+      "modes");
+  CLI::Option* dataset =
+      cmd->add_option("--dataset", args->dataset,
+                      "sequence (default: a synthetic sequence, --scenario, --motion, --frames)");
+  CLI::Option* scenario =
+      cmd->add_option("--scenario", args->scenario, "built-in sequence: synthetic scenario")
+          ->capture_default_str();
+  CLI::Option* motion =
+      cmd->add_option("--motion", args->motion, "built-in sequence: camera motion")
+          ->capture_default_str();
+  cmd->add_option("--frames", args->frames,
+                  "built-in sequences: frames (rendered once into --work)")
       ->check(CLI::Range(10, 100000))
       ->capture_default_str();
-  cmd->add_option("--block", args->block,
-                  "soak report: per block of this many frames, mapping ms per keyframe (median, "
-                  "p95, stages), keyframes and map points alive, resident memory, frame ATE")
-      ->check(CLI::Range(1, 1000000));
-  cmd->add_option("--config", args->config, "config YAML for --dataset");
-  cmd->add_option("--runs", args->runs, "number of runs")
+  CLI::Option* block =
+      cmd->add_option("--block", args->block,
+                      "soak report: per block of this many frames, mapping ms per keyframe "
+                      "(median, p95, stages), keyframes and map points alive, resident memory, "
+                      "frame ATE")
+          ->check(CLI::Range(1, 1000000));
+  cmd->add_option("--config", args->config,
+                  "config YAML for --dataset (with --sequences: for every dataset folder; "
+                  "default there: the folder's camera.yaml)");
+  cmd->add_option("--runs", args->runs, "number of runs (of each row, with --sequences)")
       ->check(CLI::Range(1, 100))
       ->capture_default_str();
   cmd->add_flag("--threaded", args->threaded, "map in a thread (default: sequential)");
   cmd->add_option("--work", args->work, "folder for outputs")->capture_default_str();
   args->overrides.AddTo(cmd);
-  cmd->callback([args] { RunBench(*args); });
+  CLI::Option* sequences =
+      cmd->add_option("--sequences", args->sequences,
+                      "the table's sequences, comma-separated: synth:<scenario>[:<motion>] "
+                      "(built in, --frames frames; default motion: the scenario's own) or a "
+                      "dataset folder (--config or its camera.yaml)")
+          ->delimiter(',');
+  sequences->excludes(dataset)->excludes(scenario)->excludes(motion)->excludes(block);
+  sequences->excludes(cmd->get_option("--mode"));  // --modes gives the rows' modes
+  cmd->add_option("--modes", args->modes,
+                  "with --sequences: the modes, comma-separated (oracle: n/a for a sequence "
+                  "without ground-truth masks)")
+      ->delimiter(',')
+      ->capture_default_str()
+      ->needs(sequences);
+  cmd->add_option("--table", args->table,
+                  "with --sequences: also write the Markdown table to this file")
+      ->needs(sequences);
+  cmd->callback([args, sequences] {
+    if (sequences->count() == 0) return RunBench(*args);
+    BenchMatrixArgs matrix;
+    matrix.sequences = args->sequences;
+    matrix.modes = args->modes;
+    matrix.config = args->config;
+    matrix.table = args->table;
+    matrix.work = args->work;
+    matrix.frames = args->frames;
+    matrix.runs = args->runs;
+    matrix.threaded = args->threaded;
+    matrix.overrides = args->overrides;
+    RunBenchMatrix(matrix);
+  });
 }
 
 }  // namespace sdoslam

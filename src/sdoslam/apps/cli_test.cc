@@ -3,9 +3,14 @@
 
 #include <array>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <sstream>
+#include <tuple>
+#include <utility>
+#include <vector>
 
 #include "sdoslam/io/trajectory.h"
 #include "sdoslam/testing/test_util.h"
@@ -286,6 +291,182 @@ TEST_F(CliRun, BenchTimesTheFrontEndInSdoModeAndRejectsUnknownBackends) {
   r = RunSdoslam(common + " --mode sdo --detector yolo9000");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.output.find("yolo9000"), std::string::npos) << r.output;
+}
+
+// The cells of a Markdown table's rows ("| a | b |" lines; the separator row too), trimmed.
+std::vector<std::vector<std::string>> MarkdownRows(const std::string& text) {
+  std::vector<std::vector<std::string>> rows;
+  std::istringstream lines(text);
+  for (std::string line; std::getline(lines, line);) {
+    if (line.size() < 2 || line.front() != '|' || line.back() != '|') continue;
+    std::vector<std::string> cells;
+    for (size_t begin = 1, end; (end = line.find('|', begin)) != std::string::npos;
+         begin = end + 1) {
+      const std::string cell = line.substr(begin, end - begin);
+      const size_t first = cell.find_first_not_of(' '), last = cell.find_last_not_of(' ');
+      cells.push_back(first == std::string::npos ? "" : cell.substr(first, last - first + 1));
+    }
+    rows.push_back(cells);
+  }
+  return rows;
+}
+
+// "12.3", "12.3 (11.0–14.2)" or "12.3 / 15.1": the numbers in it; none for "–" or "n/a".
+std::vector<double> NumbersIn(const std::string& cell) {
+  std::vector<double> numbers;
+  const char* p = cell.c_str();
+  while (*p != '\0') {
+    char* end = nullptr;
+    const double value = std::strtod(p, &end);
+    if (end != p) {
+      numbers.push_back(value);
+      p = end;
+    } else {
+      ++p;
+    }
+  }
+  return numbers;
+}
+
+// ATE and RTE RMSE (mm) of a run's CameraTrajectory.txt, as `sdoslam eval` computes them.
+std::pair<double, double> EvalMillimetres(const std::filesystem::path& gt,
+                                          const std::filesystem::path& run) {
+  const auto json = run / "eval.json";
+  const Result r = RunSdoslam("eval --no-plots --gt " + gt.string() + " --est " +
+                              (run / "CameraTrajectory.txt").string() + " --json " + json.string());
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  const auto j = nlohmann::json::parse(testing::ReadText(json))["estimates"][0];
+  return {1000 * j["ate"]["rmse"].get<double>(),
+          1000 * j["rte"]["translation"]["rmse"].get<double>()};
+}
+
+// sequences × modes → one Markdown table: one row per (sequence, mode) in the order given, the
+// oracle row of a sequence without ground-truth masks n/a, ATE and RTE what `sdoslam eval` says
+// of the runs' own trajectories, tracked counts what the trajectories hold.
+TEST_F(CliRun, BenchMatrixWritesOneRowPerSequenceAndMode) {
+  namespace fs = std::filesystem;
+  const fs::path no_masks = dir_ / "no_masks";
+  fs::copy(dir_ / "seq", no_masks, fs::copy_options::recursive);
+  fs::remove_all(no_masks / "dynamic");
+  const fs::path work = dir_ / "bench", table = dir_ / "tables" / "matrix.md";
+  const Result r = RunSdoslam("bench --runs 2 --frames 40 --sequences synth:walking_xyz," +
+                              no_masks.string() + " --modes conventional,oracle --work " +
+                              work.string() + " --table " + table.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string text = testing::ReadText(table);
+  EXPECT_NE(r.output.find(text), std::string::npos) << "the table is printed as written";
+  EXPECT_NE(text.find("2 runs per row, sequential mapping"), std::string::npos) << text;
+
+  const auto rows = MarkdownRows(text);
+  ASSERT_EQ(rows.size(), 2u + 4u) << text;
+  EXPECT_EQ(rows[0], (std::vector<std::string>{"sequence", "mode", "ATE RMSE mm", "RTE RMSE mm",
+                                               "front end ms", "features + tracking ms",
+                                               "mapping ms/keyframe", "fps", "peak RSS MB",
+                                               "tracked/frames"}));
+  EXPECT_EQ(rows[1], std::vector<std::string>(10, "---")) << text;
+  struct Expected {
+    std::string sequence, mode;
+    fs::path ground_truth, runs;  // the runs: run0, run1
+    size_t frames;
+  };
+  const fs::path synthetic = work / "walking_xyz_xyz_40";
+  const std::vector<Expected> expected = {
+      {"synth:walking_xyz:xyz", "conventional", synthetic / "groundtruth.txt",
+       work / "matrix" / "01_walking_xyz_xyz" / "conventional", 40},
+      {"synth:walking_xyz:xyz", "oracle", synthetic / "groundtruth.txt",
+       work / "matrix" / "01_walking_xyz_xyz" / "oracle", 40},
+      {no_masks.string(), "conventional", no_masks / "groundtruth.txt",
+       work / "matrix" / "02_no_masks" / "conventional", 35},
+  };
+  for (size_t k = 0; k < expected.size(); ++k) {
+    const Expected& e = expected[k];
+    const std::vector<std::string>& row = rows[2 + k];
+    SCOPED_TRACE(e.sequence + " " + e.mode);
+    ASSERT_EQ(row.size(), 10u) << text;
+    EXPECT_EQ(row[0], e.sequence);
+    EXPECT_EQ(row[1], e.mode);
+    // ATE and RTE: median (min–max) over the two runs, as `eval` scores each run's trajectory.
+    const auto [ate0, rte0] = EvalMillimetres(e.ground_truth, e.runs / "run0");
+    const auto [ate1, rte1] = EvalMillimetres(e.ground_truth, e.runs / "run1");
+    const double rounding = 0.05 + 1e-9;  // the cells have one decimal
+    for (const auto& [cell, first, second] :
+         {std::tuple{row[2], ate0, ate1}, std::tuple{row[3], rte0, rte1}}) {
+      const std::vector<double> numbers = NumbersIn(cell);
+      ASSERT_EQ(numbers.size(), 3u) << cell;
+      EXPECT_NEAR(numbers[0], (first + second) / 2, rounding) << cell;
+      EXPECT_NEAR(numbers[1], std::min(first, second), rounding) << cell;
+      EXPECT_NEAR(numbers[2], std::max(first, second), rounding) << cell;
+    }
+    EXPECT_EQ(row[4], "–") << "no front end in mode " << e.mode;
+    for (const std::string& cell : {row[5], row[6]}) {  // median / p95
+      const std::vector<double> numbers = NumbersIn(cell);
+      ASSERT_EQ(numbers.size(), 2u) << cell;
+      EXPECT_GT(numbers[0], 0) << cell;
+      EXPECT_LE(numbers[0], numbers[1]) << cell;
+    }
+    const std::vector<double> fps = NumbersIn(row[7]);
+    ASSERT_EQ(fps.size(), 1u) << row[7];
+    EXPECT_GT(fps[0], 0.5);
+    const std::vector<double> rss = NumbersIn(row[8]);
+    ASSERT_EQ(rss.size(), 1u) << row[8];
+    EXPECT_GT(rss[0], 20);  // OpenCV, Ceres and 640×480 images: never less
+    EXPECT_LT(rss[0], 4096);
+    const size_t tracked = ReadTumTrajectory(e.runs / "run0" / "CameraTrajectory.txt").size();
+    EXPECT_EQ(tracked, ReadTumTrajectory(e.runs / "run1" / "CameraTrajectory.txt").size());
+    EXPECT_EQ(row[9], std::to_string(tracked) + "/" + std::to_string(e.frames));
+  }
+  EXPECT_EQ(rows[5], (std::vector<std::string>{no_masks.string(), "oracle", "n/a", "n/a", "n/a",
+                                               "n/a", "n/a", "n/a", "n/a", "n/a"}));
+  EXPECT_FALSE(fs::exists(work / "matrix" / "02_no_masks" / "oracle"));
+}
+
+// Every item is checked before anything is rendered or run; the message names the bad one.
+TEST(CliBenchMatrix, BadInputIsNamedBeforeAnythingRuns) {
+  testing::TempDir dir;
+  // Small enough that a case which wrongly passes the checks costs seconds, not minutes.
+  const std::string work = " --frames 10 --runs 1 --work " + (dir / "work").string();
+  std::filesystem::create_directories(dir / "no_config");
+  const std::string no_config = (dir / "no_config").string();
+  const std::string missing = (dir / "missing").string();
+  for (const auto& [arguments, message] : std::vector<std::pair<std::string, std::string>>{
+           {"--sequences synth:static_room --modes conventional,fast",
+            "--modes: unknown mode 'fast' (known: conventional, sdo, oracle)"},
+           {"--sequences synth:static_room,synth:nosuch",
+            "--sequences item 'synth:nosuch': unknown scenario 'nosuch'"},
+           {"--sequences synth:static_room:wobble",
+            "--sequences item 'synth:static_room:wobble': unknown camera motion 'wobble'"},
+           {"--sequences synth:static_room," + missing,
+            "--sequences item '" + missing + "': no such folder"},
+           {"--sequences " + no_config,
+            "--sequences item '" + no_config + "': no config: give --config"},
+           {"--sequences ''", "--sequences: an empty item"},
+           {"--sequences synth:static_room,synth:static_room:xyz",
+            "--sequences item 'synth:static_room:xyz': listed twice"},
+           {"--sequences synth:static_room --modes ''", "--modes: an empty item"},
+           {"--sequences synth:static_room --config " + no_config + "/camera.yaml",
+            "--config is for the dataset folders in --sequences, and there is none"},
+       }) {
+    const Result r = RunSdoslam("bench" + work + " " + arguments);
+    EXPECT_EQ(r.exit_code, 1) << arguments << "\n" << r.output;
+    EXPECT_NE(r.output.find("error: " + message), std::string::npos) << arguments << "\n"
+                                                                     << r.output;
+    EXPECT_EQ(r.output.find("rendering"), std::string::npos) << arguments << "\n" << r.output;
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir / "work"));
+  // A --table that cannot be written is an I/O error, also found before the first run.
+  const Result r =
+      RunSdoslam("bench" + work + " --sequences synth:static_room --table /proc/self/t.md");
+  EXPECT_EQ(r.exit_code, 4) << r.output;
+  EXPECT_NE(r.output.find("error: --table /proc/self/t.md: cannot write"), std::string::npos)
+      << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "work"));
+  // The single-sequence options do not mix with the matrix: usage errors.
+  for (const std::string& arguments : std::vector<std::string>{
+           "--sequences synth:static_room --dataset " + no_config,
+           "--sequences synth:static_room --mode sdo", "--modes sdo", "--table t.md"}) {
+    const Result r = RunSdoslam("bench" + work + " " + arguments);
+    EXPECT_EQ(r.exit_code, 2) << arguments << "\n" << r.output;
+  }
 }
 
 TEST_F(CliRun, OnnxBackendsAreChosenOnTheCommandLine) {

@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <fstream>
+#include <string>
 
 namespace sdoslam {
 
@@ -12,6 +13,26 @@ size_t ResidentBytes() {
   if (!(statm >> total_pages >> resident_pages)) return 0;
   const long page = sysconf(_SC_PAGESIZE);
   return page > 0 ? resident_pages * static_cast<size_t>(page) : 0;
+}
+
+size_t PeakResidentBytes() {
+  std::ifstream status("/proc/self/status");
+  std::string key;
+  while (status >> key) {
+    if (key == "VmHWM:") {
+      size_t kilobytes = 0;  // the kernel writes "VmHWM:   123456 kB"
+      return status >> kilobytes ? kilobytes * 1024 : 0;
+    }
+    status.ignore(1 << 16, '\n');
+  }
+  return 0;
+}
+
+bool ResetPeakResidentBytes() {
+  std::ofstream clear_refs("/proc/self/clear_refs");
+  if (!(clear_refs << "5" << std::flush)) return false;
+  // Kernels without the reset take the write and leave the peak alone: check that it moved.
+  return PeakResidentBytes() <= ResidentBytes() + (1 << 20);
 }
 
 }  // namespace sdoslam

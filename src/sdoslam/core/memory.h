@@ -7,4 +7,14 @@ namespace sdoslam {
 // The process's resident set size now, in bytes (Linux: /proc/self/statm); 0 where unknown.
 size_t ResidentBytes();
 
+// The process's peak resident set size, in bytes, since it started or since the last successful
+// ResetPeakResidentBytes() (Linux: VmHWM of /proc/self/status, kept by the kernel, so a peak
+// between two samples is not missed); 0 where unknown.
+size_t PeakResidentBytes();
+
+// Lowers the kernel's peak to the resident size now, so that PeakResidentBytes() measures one
+// stretch of work (a run) inside a longer process (Linux >= 4.0: "5" into /proc/self/clear_refs).
+// Returns false where that is not possible: the peak then still covers the whole process.
+bool ResetPeakResidentBytes();
+
 }  // namespace sdoslam
