@@ -361,9 +361,9 @@ TEST_F(CliRun, BenchMatrixWritesOneRowPerSequenceAndMode) {
   ASSERT_EQ(rows.size(), 2u + 4u) << text;
   EXPECT_EQ(rows[0], (std::vector<std::string>{"sequence", "mode", "ATE RMSE mm", "RTE RMSE mm",
                                                "front end ms", "features + tracking ms",
-                                               "mapping ms/keyframe", "fps", "peak RSS MB",
-                                               "tracked/frames"}));
-  EXPECT_EQ(rows[1], std::vector<std::string>(10, "---")) << text;
+                                               "mapping ms/keyframe", "fps", "latency ms",
+                                               "peak RSS MB", "tracked/frames"}));
+  EXPECT_EQ(rows[1], std::vector<std::string>(11, "---")) << text;
   struct Expected {
     std::string sequence, mode;
     fs::path ground_truth, runs;  // the runs: run0, run1
@@ -382,7 +382,7 @@ TEST_F(CliRun, BenchMatrixWritesOneRowPerSequenceAndMode) {
     const Expected& e = expected[k];
     const std::vector<std::string>& row = rows[2 + k];
     SCOPED_TRACE(e.sequence + " " + e.mode);
-    ASSERT_EQ(row.size(), 10u) << text;
+    ASSERT_EQ(row.size(), 11u) << text;
     EXPECT_EQ(row[0], e.sequence);
     EXPECT_EQ(row[1], e.mode);
     // ATE and RTE: median (min–max) over the two runs, as `eval` scores each run's trajectory.
@@ -407,16 +407,22 @@ TEST_F(CliRun, BenchMatrixWritesOneRowPerSequenceAndMode) {
     const std::vector<double> fps = NumbersIn(row[7]);
     ASSERT_EQ(fps.size(), 1u) << row[7];
     EXPECT_GT(fps[0], 0.5);
-    const std::vector<double> rss = NumbersIn(row[8]);
-    ASSERT_EQ(rss.size(), 1u) << row[8];
+    const std::vector<double> latency = NumbersIn(row[8]);
+    ASSERT_EQ(latency.size(), 1u) << row[8];
+    EXPECT_GT(latency[0], 0);
+    // Sequential: a frame's latency is its own time, which in a run where nothing overlaps is
+    // about the time between frames (1 / fps; that one also holds mapping and logging).
+    EXPECT_LT(latency[0], 1.5 * 1000.0 / fps[0]) << row[7] << " fps";
+    const std::vector<double> rss = NumbersIn(row[9]);
+    ASSERT_EQ(rss.size(), 1u) << row[9];
     EXPECT_GT(rss[0], 20);  // OpenCV, Ceres and 640×480 images: never less
     EXPECT_LT(rss[0], 4096);
     const size_t tracked = ReadTumTrajectory(e.runs / "run0" / "CameraTrajectory.txt").size();
     EXPECT_EQ(tracked, ReadTumTrajectory(e.runs / "run1" / "CameraTrajectory.txt").size());
-    EXPECT_EQ(row[9], std::to_string(tracked) + "/" + std::to_string(e.frames));
+    EXPECT_EQ(row[10], std::to_string(tracked) + "/" + std::to_string(e.frames));
   }
   EXPECT_EQ(rows[5], (std::vector<std::string>{no_masks.string(), "oracle", "n/a", "n/a", "n/a",
-                                               "n/a", "n/a", "n/a", "n/a", "n/a"}));
+                                               "n/a", "n/a", "n/a", "n/a", "n/a", "n/a"}));
   EXPECT_FALSE(fs::exists(work / "matrix" / "02_no_masks" / "oracle"));
 }
 

@@ -57,7 +57,7 @@ struct StagedFrame {
   std::vector<uint8_t> locked_segments;
   FrontEndTiming front_end_timing;
   std::optional<PreparedFrame> slam;
-  std::chrono::steady_clock::time_point started;  // when Prepare began: the frame's latency
+  std::chrono::steady_clock::time_point started;  // the frame's latency counts from here (Prepare or the load)
 };
 
 // One frame's outcome.
@@ -70,7 +70,7 @@ struct FrameOutput {
   std::optional<SdoResult> sdo;
   FrameTiming timing;
   FrontEndTiming front_end_timing;
-  double latency_ms = 0;  // from the start of Prepare to the end of Finish
+  double latency_ms = 0;  // from StagedFrame::started to the end of Finish
 };
 
 // The whole system for one camera: the dynamic front end (per `mode`) and SLAM, one frame at a
