@@ -136,6 +136,10 @@ void WriteDemoReport(const DemoArgs& args, const std::filesystem::path& out,
       "ceiling for sdo).",
       args.frames, args.seed));
   report.sections.push_back(EvaluationSection(evaluations, options));
+  // The strip right under the table: what the front end does explains conventional vs sdo.
+  for (const DemoRun& run : runs) {
+    if (!run.strip.empty()) report.sections.push_back(OverlaySection(run, out));
+  }
 
   if (!evaluations.empty()) {
     // One row per run: its top view beside its error over time on its own scale; then the
@@ -161,9 +165,6 @@ void WriteDemoReport(const DemoArgs& args, const std::filesystem::path& out,
     report.sections.push_back(all_runs);
   }
 
-  for (const DemoRun& run : runs) {
-    if (!run.strip.empty()) report.sections.push_back(OverlaySection(run, out));
-  }
   report.sections.push_back(TimingSection(runs));
   for (const DemoRun& run : runs) {
     if (run.mode != RunMode::kSdo) continue;

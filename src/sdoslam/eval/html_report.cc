@@ -196,8 +196,8 @@ HtmlSection EvaluationSection(const std::vector<EstimateEvaluation>& evaluations
                               const EvaluationOptions& options) {
   HtmlSection section;
   section.title = "Accuracy";
-  const std::string delta = fmt::format(
-      "{:g} {}", options.rte.delta, options.rte.unit == DeltaUnit::kFrames ? "frames" : "seconds");
+  const std::string delta = fmt::format("{:g} {}", options.rte.delta,
+                                        options.rte.unit == DeltaUnit::kFrames ? "frames" : "s");
   section.paragraphs.push_back(fmt::format(
       "Absolute trajectory error (ATE, after {} alignment) in metres over the matched poses; "
       "relative pose error (RTE) over {}: RMSE of translation (m) and rotation (degrees).",
