@@ -7,6 +7,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <regex>
 #include <sstream>
 #include <tuple>
 #include <utility>
@@ -155,6 +156,29 @@ TEST(CliEvalPairing, RtePairingIsAnOptionAndRecorded) {
   }
 }
 
+// What a browser opens for each src= and href= of `html` (relative URLs the demo writes):
+// entities undone, the fragment and query cut off, percent-escapes decoded.
+std::vector<std::string> ReferencedFiles(const std::string& html) {
+  std::vector<std::string> files;
+  const std::regex attribute(R"re(\b(?:src|href)\s*=\s*"([^"]*)")re");
+  for (auto it = std::sregex_iterator(html.begin(), html.end(), attribute);
+       it != std::sregex_iterator(); ++it) {
+    std::string url = std::regex_replace((*it)[1].str(), std::regex("&amp;"), "&");
+    url = url.substr(0, url.find_first_of("#?"));
+    std::string path;
+    for (size_t i = 0; i < url.size(); ++i) {
+      if (url[i] == '%' && i + 2 < url.size()) {
+        path += static_cast<char>(std::stoi(url.substr(i + 1, 2), nullptr, 16));
+        i += 2;
+      } else {
+        path += url[i];
+      }
+    }
+    files.push_back(path);
+  }
+  return files;
+}
+
 TEST(CliDemo, RunsWithoutDataAndPrintsResults) {
   testing::TempDir dir;
   const Result r = RunSdoslam("demo --frames 40 --out " + dir.path().string());
@@ -165,6 +189,34 @@ TEST(CliDemo, RunsWithoutDataAndPrintsResults) {
   EXPECT_TRUE(
       std::filesystem::exists(dir / "slam" / "static_room_conventional" / "CameraTrajectory.txt"));
   EXPECT_TRUE(std::filesystem::exists(dir / "plots" / "ate_over_time.png"));
+
+  // The report: every image and link resolves relative to it. Images: per run (4) a top view
+  // and an error plot, the error of all runs, and 6 overlay thumbnails (small, linking to the
+  // full-size overlays); the sdo run's config shown.
+  const auto report = dir / "report.html";
+  ASSERT_TRUE(std::filesystem::exists(report)) << r.output;
+  EXPECT_NE(r.output.find(report.string()), std::string::npos) << r.output;
+  const std::string html = testing::ReadText(report);
+  const auto files = ReferencedFiles(html);
+  size_t thumbnails = 0, overlays = 0;
+  for (const auto& f : files) {
+    ASSERT_FALSE(std::filesystem::path(f).is_absolute()) << f;
+    EXPECT_TRUE(std::filesystem::is_regular_file(dir / f)) << f;
+    if (f.starts_with("report_files/")) {
+      ++thumbnails;
+      EXPECT_LE(cv::imread((dir / f).string()).cols, 320) << f;
+    }
+    overlays += f.starts_with("slam/walking_xyz_sdo/overlays/");
+  }
+  size_t images = 0;
+  for (size_t at = html.find("<img "); at != std::string::npos; at = html.find("<img ", at + 1))
+    ++images;
+  EXPECT_EQ(images, 4u * 2 + 1 + 6) << html;
+  EXPECT_EQ(thumbnails, 6u) << html;
+  EXPECT_EQ(overlays, 6u) << html;
+  EXPECT_NE(html.find("mode: sdo"), std::string::npos);  // the config, in its <pre>
+  EXPECT_EQ(html.find("<script"), std::string::npos);
+  EXPECT_EQ(html.find("://"), std::string::npos);
 }
 
 class CliRun : public ::testing::Test {

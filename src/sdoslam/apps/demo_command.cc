@@ -3,11 +3,16 @@
 #include <fmt/format.h>
 
 #include <iostream>
+#include <map>
 #include <memory>
+#include <system_error>
 
-#include "sdoslam/pipeline/pipeline.h"
+#include "sdoslam/eval/html_report.h"
 #include "sdoslam/eval/report.h"
+#include "sdoslam/io/dataset.h"
 #include "sdoslam/io/trajectory.h"
+#include "sdoslam/pipeline/pipeline.h"
+#include "sdoslam/synth/scenarios.h"
 #include "sdoslam/synth/sequence.h"
 
 namespace sdoslam {
@@ -19,6 +24,161 @@ struct DemoArgs {
   int frames = 150;
 };
 
+// One SLAM run of the demo, kept for the report.
+struct DemoRun {
+  std::string label;  // "<scenario> <mode>", as in the evaluation table
+  RunMode mode;
+  std::filesystem::path sequence;  // the rendered input
+  std::filesystem::path out;       // the run's result set
+  RunSummary summary;
+  // sdo run: the frames of the report's strip (index) with their features as thumbnail marks.
+  std::map<size_t, std::vector<ThumbnailMark>> strip;
+};
+
+// The strip shows this many frames of the sdo run, each this wide: half the rendered width, so
+// that three fit side by side and six weigh about 250 KB.
+constexpr size_t kOverlayThumbnails = 6;
+constexpr int kThumbnailWidth = 320;
+// DrawOverlay's feature colours (static green, dynamic red), redrawn on the thumbnails.
+constexpr unsigned kStaticFeature = 0x00dc00, kDynamicFeature = 0xff0000;
+
+std::string Milliseconds(double ms) { return fmt::format("{:.1f}", ms); }
+
+HtmlSection TimingSection(const std::vector<DemoRun>& runs) {
+  HtmlSection section;
+  section.title = "Stage timings";
+  section.paragraphs.push_back(
+      "Medians in milliseconds on this machine: per frame for the dynamic front end and its "
+      "stages, for features + tracking and for the total; per keyframe for local mapping. Each "
+      "stage has its own median, so stages need not add up to the front end's median. The front "
+      "end runs in sdo mode only (oracle reads the ground-truth masks instead).");
+  HtmlTable table;
+  table.header = {"run",
+                  "frames",
+                  "tracked",
+                  "keyframes",
+                  "front end",
+                  "segment",
+                  "detect",
+                  "flow",
+                  "classify",
+                  "features + tracking",
+                  "total per frame",
+                  "mapping per keyframe"};
+  for (const DemoRun& run : runs) {
+    const RunSummary& s = run.summary;
+    const bool front_end = run.mode == RunMode::kSdo;
+    auto stage = [&](double ms) { return front_end ? Milliseconds(ms) : std::string("-"); };
+    table.rows.push_back(
+        {run.label, std::to_string(s.frames), std::to_string(s.tracked),
+         std::to_string(s.keyframes), stage(s.median_front_end_ms),
+         stage(s.median_front_end_stages.segment_ms), stage(s.median_front_end_stages.detect_ms),
+         stage(s.median_front_end_stages.flow_ms), stage(s.median_front_end_stages.classify_ms),
+         Milliseconds(s.median_frame_ms), Milliseconds(s.median_total_ms),
+         Milliseconds(s.median_mapping_ms)});
+  }
+  section.tables.push_back(std::move(table));
+  return section;
+}
+
+// Thumbnails of the strip's overlays of `run` (which saved them), each linking to its full size.
+// Overlays are named after the sequence's rgb images, so the sequence gives their names.
+HtmlSection OverlaySection(const DemoRun& run, const std::filesystem::path& out) {
+  HtmlSection section;
+  section.title = "Static and dynamic features (" + run.label + ")";
+  section.layout = HtmlImageLayout::kStrip;
+  section.paragraphs.push_back(
+      "Features the dynamic front end kept as static are green, those it marked dynamic red "
+      "(redrawn larger on these thumbnails). Tinted regions are dynamic: orange a known movable "
+      "class (the renderer's detections), magenta moving with no known class, blue turned dynamic "
+      "by the tracker's scene-flow check; grey lines outline segments, cyan marks motion "
+      "boundaries, yellow boxes are detections. Click a frame for the full-size overlay.");
+  const RgbdDataset dataset(run.sequence, synth::SyntheticCamera());
+  for (const auto& [index, marks] : run.strip) {
+    const auto name = dataset.entries().at(index).rgb_path.filename();
+    const auto overlay = run.out / "overlays" / name;
+    const auto thumbnail =
+        out / "report_files" / std::filesystem::path(name).replace_extension(".jpg");
+    WriteThumbnail(overlay, thumbnail, kThumbnailWidth, marks);
+    section.images.push_back({thumbnail.lexically_relative(out),
+                              fmt::format("frame {} of {}", index + 1, run.summary.frames),
+                              overlay.lexically_relative(out)});
+  }
+  return section;
+}
+
+// The plots' .png files among `files` (each .png is followed by its .svg), as images that link
+// to their .svg.
+std::vector<HtmlImage> PlotImages(const std::vector<std::filesystem::path>& files,
+                                  const std::filesystem::path& out) {
+  std::vector<HtmlImage> images;
+  for (const auto& file : files) {
+    if (file.extension() != ".png") continue;
+    const auto svg = std::filesystem::path(file).replace_extension(".svg");
+    images.push_back({file.lexically_relative(out), "", svg.lexically_relative(out)});
+  }
+  return images;
+}
+
+// <out>/report.html: everything the demo printed and plotted on one page, with a strip of the
+// sdo run's overlays, so that a user sees what happened without reading the terminal.
+void WriteDemoReport(const DemoArgs& args, const std::filesystem::path& out,
+                     const std::vector<DemoRun>& runs,
+                     const std::vector<EstimateEvaluation>& evaluations,
+                     const EvaluationOptions& options) {
+  HtmlReport report;
+  report.title = "sdoslam demo";
+  report.intro.push_back(fmt::format(
+      "A static room and the same room with people walking through it, {} frames each at 30 fps "
+      "along the same camera motion (sensor noise seed {}), rendered by sdoslam synth. SLAM ran "
+      "conventional (every feature used) on both; on the walking sequence also sdo (the dynamic "
+      "front end decides which features are static) and oracle (the ground-truth masks: the "
+      "ceiling for sdo).",
+      args.frames, args.seed));
+  report.sections.push_back(EvaluationSection(evaluations, options));
+  // The strip right under the table: what the front end does explains conventional vs sdo.
+  for (const DemoRun& run : runs) {
+    if (!run.strip.empty()) report.sections.push_back(OverlaySection(run, out));
+  }
+
+  if (!evaluations.empty()) {
+    // One row per run: its top view beside its error over time on its own scale; then the
+    // errors of all runs on one scale.
+    const auto plots = out / "plots";
+    const auto top_views = PlotImages(WriteEvaluationPlots(evaluations, options, plots), out);
+    const auto errors = PlotImages(WriteErrorOverTimePlots(evaluations, plots), out);
+    HtmlSection per_run;
+    per_run.title = "Trajectories and error over time";
+    per_run.paragraphs.push_back(
+        "Left, top views: ground truth in black, the estimate after alignment in colour, grey "
+        "lines from estimated poses to their ground truth. Right, the translation error of each "
+        "aligned pose against time, on the run's own scale. Click a plot for its SVG.");
+    for (size_t k = 0; k < evaluations.size(); ++k) {
+      per_run.images.push_back(top_views.at(k));
+      per_run.images.push_back(errors.at(k));
+    }
+    report.sections.push_back(per_run);
+    HtmlSection all_runs;
+    all_runs.title = "Error over time, all runs";
+    all_runs.paragraphs.push_back("The same errors on one scale.");
+    all_runs.images.push_back(top_views.at(evaluations.size()));  // ate_over_time.png
+    report.sections.push_back(all_runs);
+  }
+
+  report.sections.push_back(TimingSection(runs));
+  for (const DemoRun& run : runs) {
+    if (run.mode != RunMode::kSdo) continue;
+    HtmlSection config;
+    config.title = "Configuration of " + run.label;
+    config.paragraphs.push_back(
+        "The resolved configuration the run wrote; passed to sdoslam run --config, it reruns the "
+        "run.");
+    config.text_file = (run.out / "config.yaml").lexically_relative(out);
+    report.sections.push_back(config);
+  }
+  WriteHtmlReport(report, out / "report.html");
+}
+
 // The main job on built-in data: render a static room and the same room with people walking
 // through it (same camera motion), run SLAM and evaluate against the ground truth: conventional
 // on both, then the dynamic front end (sdo) and the ground-truth-mask oracle on the walking one.
@@ -29,6 +189,10 @@ void RunDemo(const DemoArgs& args) {
   const std::filesystem::path out = args.out;
   std::cout << "sdoslam demo: synthetic sequence -> SLAM -> evaluation (nothing downloaded)\n\n";
   std::vector<EstimateEvaluation> evaluations;
+  std::vector<DemoRun> runs;
+  // Thumbnails of an earlier demo would linger next to the new ones.
+  std::error_code ignored;
+  std::filesystem::remove_all(out / "report_files", ignored);
   for (const char* scenario : {"static_room", "walking_xyz"}) {
     synth::SynthOptions synth_options;
     synth_options.scenario = scenario;
@@ -45,28 +209,56 @@ void RunDemo(const DemoArgs& args) {
     if (std::string(scenario) != "static_room")
       modes = {RunMode::kConventional, RunMode::kSdo, RunMode::kOracle};
     for (RunMode mode : modes) {
+      DemoRun demo_run{fmt::format("{} {}", scenario, ToString(mode)),
+                       mode,
+                       sequence,
+                       out / "slam" / fmt::format("{}_{}", scenario, ToString(mode)),
+                       {},
+                       {}};
       RunOptions run_options;
       run_options.dataset = sequence;
       run_options.camera = synth::SyntheticCamera();
       run_options.mode = mode;
       run_options.front_end.detector = "file";
       run_options.front_end.detections_file = "detections.json";
-      run_options.out = out / "slam" / fmt::format("{}_{}", scenario, ToString(mode));
+      run_options.out = demo_run.out;
+      if (mode == RunMode::kSdo) {
+        // The report's strip shows the dynamic front end at work: overlays of the strip's frames
+        // (to click through to; only those, to keep the demo folder small) and their features,
+        // to redraw on thumbnails.
+        run_options.save_overlays = true;
+        for (size_t i : EvenlySpaced(rendered.frames, kOverlayThumbnails)) {
+          demo_run.strip[i];
+          run_options.overlay_frames.push_back(i);
+        }
+        run_options.after_frame = [&strip = demo_run.strip](const TrackingResult& r,
+                                                            const System&) {
+          const auto it = strip.find(r.index);
+          if (it == strip.end()) return;
+          for (size_t k = 0; k < r.feature_points.size(); ++k) {
+            const bool dynamic = k < r.feature_labels.size() && r.feature_labels[k] != kStatic;
+            it->second.push_back({r.feature_points[k], dynamic ? kDynamicFeature : kStaticFeature});
+          }
+        };
+      }
       RunSummary run = RunOnDataset(run_options);
       std::cout << ToString(mode) << ": " << FormatRunSummary(run);
       if (run.masks && mode == RunMode::kSdo)
         std::cout << FormatMaskEvaluation(*run.masks, "sdo masks");
       std::cout << '\n';
       if (run.evaluation) {
-        run.evaluation->label = fmt::format("{} {}", scenario, ToString(mode));
+        run.evaluation->label = demo_run.label;
         evaluations.push_back(*run.evaluation);
       }
+      demo_run.summary = std::move(run);
+      runs.push_back(std::move(demo_run));
     }
   }
   const EvaluationOptions options;
   std::cout << FormatTable(evaluations, options);
-  WriteEvaluationPlots(evaluations, options, out / "plots");
-  std::cout << "\nsequences, trajectories and plots in " << out.string() << "/\n";
+  WriteDemoReport(args, out, runs, evaluations, options);
+  std::cout << "\nsequences, trajectories and plots in " << out.string()
+            << "/\nreport (open in a browser): " << (out / "report.html").string() << "\n";
 }
 
 }  // namespace

@@ -198,4 +198,29 @@ std::vector<std::filesystem::path> WriteEvaluationPlots(
   return written;
 }
 
+std::vector<std::filesystem::path> WriteErrorOverTimePlots(
+    const std::vector<EstimateEvaluation>& evaluations, const std::filesystem::path& folder) {
+  std::vector<std::filesystem::path> written;
+  for (size_t k = 0; k < evaluations.size(); ++k) {
+    const EstimateEvaluation& e = evaluations[k];
+    PlotSeries series{"", {}, kPalette[k % std::size(kPalette)], 1.5, false};
+    const double t0 = e.ate.timestamps.empty() ? 0.0 : e.ate.timestamps.front();
+    for (size_t i = 0; i < e.ate.errors.size(); ++i) {
+      series.points.emplace_back(e.ate.timestamps[i] - t0, e.ate.errors[i]);
+    }
+    const Plot plot{
+        fmt::format("{}: error over time, ATE RMSE {:.4f} m", e.label, e.ate.translation.rmse),
+        "time since start [s]",
+        "ATE [m]",
+        false,
+        {series}};
+    for (const char* ext : {".png", ".svg"}) {
+      const auto path = folder / (FileSafe(e.label) + "_ate_over_time" + ext);
+      SavePlot(plot, path);
+      written.push_back(path);
+    }
+  }
+  return written;
+}
+
 }  // namespace sdoslam

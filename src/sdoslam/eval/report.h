@@ -40,9 +40,17 @@ nlohmann::json ToJson(const std::vector<EstimateEvaluation>& evaluations,
                       const EvaluationOptions& options);
 
 // Writes, for each estimate, `<label>_top.{png,svg}` (ground truth, aligned estimate, error
-// segments) and one `ate_over_time.{png,svg}` with all estimates. Returns the files written.
+// segments) and one `ate_over_time.{png,svg}` with all estimates. Returns the files written, in
+// that order (each estimate's .png then .svg, in the order of `evaluations`).
 std::vector<std::filesystem::path> WriteEvaluationPlots(
     const std::vector<EstimateEvaluation>& evaluations, const EvaluationOptions& options,
     const std::filesystem::path& folder);
+
+// Writes, for each estimate, `<label>_ate_over_time.{png,svg}`: its translation error per pose
+// against time, on its own scale (in the plot of all estimates, one run that loses track flattens
+// the others' lines into the axis). Colours match WriteEvaluationPlots'. Returns the files
+// written: each estimate's .png then .svg, in the order of `evaluations`.
+std::vector<std::filesystem::path> WriteErrorOverTimePlots(
+    const std::vector<EstimateEvaluation>& evaluations, const std::filesystem::path& folder);
 
 }  // namespace sdoslam

@@ -44,6 +44,12 @@ TEST(Report, TableJsonAndPlotsCarryTheNumbers) {
   const auto files = WriteEvaluationPlots(evals, options, dir.path());
   EXPECT_EQ(files.size(), 6u);
   for (const auto& f : files) EXPECT_GT(std::filesystem::file_size(f), 100u) << f;
+
+  const auto per_run = WriteErrorOverTimePlots(evals, dir / "per_run");
+  ASSERT_EQ(per_run.size(), 4u);
+  EXPECT_EQ(per_run[0], dir / "per_run" / "perfect_ate_over_time.png");
+  EXPECT_EQ(per_run[3], dir / "per_run" / "drift_ate_over_time.svg");
+  EXPECT_NE(testing::ReadText(per_run[3]).find("drift: error over time"), std::string::npos);
 }
 
 TEST(Report, ShortRunStillGivesAteAndExplainsMissingRte) {

@@ -407,7 +407,9 @@ RunSummary RunOnDataset(const RunOptions& options) {
       mask_evaluator->AddFrame(rgb_paths[i], labels, r.feature_points, r.feature_labels);
     }
     const std::string name = rgb_paths[i].filename().string();
-    if (run.save_overlays) {
+    if (run.save_overlays && (run.overlay_frames.empty() ||
+                              std::find(run.overlay_frames.begin(), run.overlay_frames.end(), i) !=
+                                  run.overlay_frames.end())) {
       const cv::Mat empty_labels(image_size, CV_8U, cv::Scalar(0));
       const cv::Mat overlay =
           DrawOverlay(out.input.bgr, labels.empty() ? empty_labels : labels,

@@ -57,7 +57,8 @@ struct StagedFrame {
   std::vector<uint8_t> locked_segments;
   FrontEndTiming front_end_timing;
   std::optional<PreparedFrame> slam;
-  std::chrono::steady_clock::time_point started;  // the frame's latency counts from here (Prepare or the load)
+  std::chrono::steady_clock::time_point
+      started;  // the frame's latency counts from here (Prepare or the load)
 };
 
 // One frame's outcome.
@@ -127,9 +128,10 @@ struct RunOptions {
   SlamOptions slam;
   FrontEndOptions front_end;
   RunMode mode = RunMode::kConventional;
-  size_t max_frames = 0;       // 0: all
-  bool save_overlays = false;  // out/overlays/<rgb name>.png
-  bool save_masks = false;     // out/masks/<rgb name>.png (label image) and out/features.csv
+  size_t max_frames = 0;               // 0: all
+  bool save_overlays = false;          // out/overlays/<rgb name>.png
+  std::vector<size_t> overlay_frames;  // with save_overlays: only these frame indices (empty: all)
+  bool save_masks = false;  // out/masks/<rgb name>.png (label image) and out/features.csv
   // Called after each frame is tracked, e.g. to look at the map as it grows (with a mapping
   // thread, the map may be changing: read it under your own care, or run sequentially).
   std::function<void(const TrackingResult& result, const System& slam)> after_frame;
