@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# Builds with ThreadSanitizer into build-tsan/ and runs the tests that start threads (the mapping
+# thread, the preparing stage, the bounded queue). Passes when no report is left after
+# scripts/tsan.supp, which only covers libraries not built with TSan. Slow (TSan and an
+# unoptimised-for-speed build): about 20-40 minutes on 2 cores; not part of scripts/test.sh.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+jobs=$(nproc 2>/dev/null || echo 2)
+cmake -S . -B build-tsan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSDOSLAM_SANITIZE=thread >/dev/null
+cmake --build build-tsan -j "$jobs" --target slam_test pipeline_test
+log=$(mktemp)
+export TSAN_OPTIONS="suppressions=$PWD/scripts/tsan.supp halt_on_error=0 report_signal_unsafe=0"
+status=0
+build-tsan/src/sdoslam/pipeline/pipeline_test \
+  --gtest_filter='BoundedQueue.*:PipelineStages.*' >"$log" 2>&1 || status=$?
+build-tsan/src/sdoslam/slam/slam_test --gtest_filter='SlamThreaded.*' >>"$log" 2>&1 || status=$?
+reports=$(grep -c "WARNING: ThreadSanitizer" "$log" || true)
+grep -E "^\[  (PASSED|FAILED)" "$log" || true
+echo "tsan: $reports report(s); log in $log"
+if [ "$reports" -ne 0 ] || [ "$status" -ne 0 ]; then exit 1; fi
