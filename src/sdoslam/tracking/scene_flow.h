@@ -53,9 +53,12 @@ struct SceneFlowOptions {
   double min_established_kept = 0.5;
   int established_observations = 3;
   // Lucas–Kanade: window (px) and pyramid levels; a correspondence whose error per pixel
-  // exceeds max_track_error (8-bit intensity units) is left unmeasured.
+  // exceeds max_track_error (8-bit intensity units) is left unmeasured. Two levels above the
+  // image (not three): the search starts where a static point would be, so the coarsest level
+  // is rarely needed; over the 12 hard real-background plays and the static ones accuracy was
+  // the same or better (mixed seeds 1-3 6.8 -> 6.4 mm), and tracking 3 ms a frame cheaper.
   int track_window = 21;
-  int track_levels = 3;
+  int track_levels = 2;
   double max_track_error = 20.0;
   // ... and one that, tracked forward again, misses its start by more than this (px): dark or
   // repetitive texture and occlusions make Lucas–Kanade slip, and a slipped correspondence looks
