@@ -7,13 +7,13 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
-#include <regex>
 #include <sstream>
 #include <tuple>
 #include <utility>
 #include <vector>
 
 #include "sdoslam/io/trajectory.h"
+#include "sdoslam/testing/html_references.h"
 #include "sdoslam/testing/test_util.h"
 
 namespace sdoslam {
@@ -156,29 +156,6 @@ TEST(CliEvalPairing, RtePairingIsAnOptionAndRecorded) {
   }
 }
 
-// What a browser opens for each src= and href= of `html` (relative URLs the demo writes):
-// entities undone, the fragment and query cut off, percent-escapes decoded.
-std::vector<std::string> ReferencedFiles(const std::string& html) {
-  std::vector<std::string> files;
-  const std::regex attribute(R"re(\b(?:src|href)\s*=\s*"([^"]*)")re");
-  for (auto it = std::sregex_iterator(html.begin(), html.end(), attribute);
-       it != std::sregex_iterator(); ++it) {
-    std::string url = std::regex_replace((*it)[1].str(), std::regex("&amp;"), "&");
-    url = url.substr(0, url.find_first_of("#?"));
-    std::string path;
-    for (size_t i = 0; i < url.size(); ++i) {
-      if (url[i] == '%' && i + 2 < url.size()) {
-        path += static_cast<char>(std::stoi(url.substr(i + 1, 2), nullptr, 16));
-        i += 2;
-      } else {
-        path += url[i];
-      }
-    }
-    files.push_back(path);
-  }
-  return files;
-}
-
 TEST(CliDemo, RunsWithoutDataAndPrintsResults) {
   testing::TempDir dir;
   const Result r = RunSdoslam("demo --frames 40 --out " + dir.path().string());
@@ -197,7 +174,7 @@ TEST(CliDemo, RunsWithoutDataAndPrintsResults) {
   ASSERT_TRUE(std::filesystem::exists(report)) << r.output;
   EXPECT_NE(r.output.find(report.string()), std::string::npos) << r.output;
   const std::string html = testing::ReadText(report);
-  const auto files = ReferencedFiles(html);
+  const auto files = testing::ReferencedFiles(html);
   size_t thumbnails = 0, overlays = 0;
   for (const auto& f : files) {
     ASSERT_FALSE(std::filesystem::path(f).is_absolute()) << f;
