@@ -254,4 +254,12 @@ bool Map::SetBad(KeyFrame* kf) {
   return true;
 }
 
+Eigen::Isometry3d Map::CorrectionOf(const KeyFrame* keyframe) const {
+  // A culled keyframe moved with its first good ancestor.
+  while (keyframe != nullptr && keyframe->bad) keyframe = keyframe->parent;
+  if (keyframe == nullptr) return Eigen::Isometry3d::Identity();
+  const auto it = last_correction_.find(keyframe->id);
+  return it == last_correction_.end() ? Eigen::Isometry3d::Identity() : it->second;
+}
+
 }  // namespace sdoslam

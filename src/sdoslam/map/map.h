@@ -113,6 +113,18 @@ class Map {
   // Culled points not yet freed.
   size_t PendingGarbage() const { return graveyard_.size(); }
 
+  // Loop closing moves keyframes (and their points) to new poses. It records, per keyframe
+  // id, the change D = T_old⁻¹ · T_new of T_camera_world, so that whoever holds poses tied to
+  // the old map (tracking's last frame, its scene-flow history, a local BA solved on a copy)
+  // can carry them over, T_new = T_old · D, or drop them. The epoch counts corrections.
+  void NoteCorrection(std::map<uint64_t, Eigen::Isometry3d> change_by_keyframe) {
+    last_correction_ = std::move(change_by_keyframe);
+    ++correction_epoch_;
+  }
+  uint64_t correction_epoch() const { return correction_epoch_; }
+  // The last correction's change for `keyframe` or, for one it did not move, identity.
+  Eigen::Isometry3d CorrectionOf(const KeyFrame* keyframe) const;
+
  private:
   void SetParent(KeyFrame* keyframe, KeyFrame* parent);
   void Bury(MapPoint* point);
@@ -128,6 +140,8 @@ class Map {
     uint64_t keyframes_made;
   };
   std::vector<Grave> graveyard_;  // in culling order
+  uint64_t correction_epoch_ = 0;
+  std::map<uint64_t, Eigen::Isometry3d> last_correction_;
 };
 
 }  // namespace sdoslam

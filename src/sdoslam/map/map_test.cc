@@ -277,6 +277,36 @@ INSTANTIATE_TEST_SUITE_P(Orders, ChainCulling,
                                            std::vector<int>{1, 2, 3, 4},
                                            std::vector<int>{2, 4, 1, 3}));
 
+// Loop closing moves keyframes; tracking carries a frame tied to the old map over with its
+// reference's change. A frame placed through a culled reference moves as that reference's
+// first good ancestor moved, which is where ComposeWithReference puts it.
+TEST_F(MapTest, CorrectionOfACulledKeyFrameIsItsGoodAncestorsAndKeepsFramesOnTheirKeyFrames) {
+  const std::vector<KeyFrame*> kfs = Chain(4);
+  const Eigen::Isometry3d T_frame_k3 = PoseFor(9) * kfs[3]->pose().inverse();
+  const Eigen::Isometry3d frame_before = ComposeWithReference(kfs[3], T_frame_k3);
+  ASSERT_TRUE(map_.SetBad(kfs[3]));
+  EXPECT_EQ(map_.correction_epoch(), 0u);
+  EXPECT_TRUE(map_.CorrectionOf(kfs[2]).isApprox(Eigen::Isometry3d::Identity()));
+  // A loop moves k2 (k3's parent) and k1.
+  Eigen::Isometry3d move = Eigen::Isometry3d::Identity();
+  move.linear() = Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  move.translation() = Eigen::Vector3d(0.05, -0.02, 0.03);
+  std::map<uint64_t, Eigen::Isometry3d> changes;
+  for (KeyFrame* kf : {kfs[1], kfs[2]}) {
+    const Eigen::Isometry3d T_new = kf->pose() * move;
+    changes[kf->id] = kf->pose().inverse() * T_new;
+    kf->frame.T_camera_world = T_new;
+  }
+  map_.NoteCorrection(changes);
+  EXPECT_EQ(map_.correction_epoch(), 1u);
+  EXPECT_TRUE(map_.CorrectionOf(kfs[3]).isApprox(changes.at(kfs[2]->id)));
+  EXPECT_TRUE(map_.CorrectionOf(kfs[0]).isApprox(Eigen::Isometry3d::Identity()));
+  // The frame's old world pose carried over equals its pose composed through the culled
+  // reference after the move.
+  const Eigen::Isometry3d carried = frame_before * map_.CorrectionOf(kfs[3]);
+  EXPECT_TRUE(carried.isApprox(ComposeWithReference(kfs[3], T_frame_k3), 1e-9));
+}
+
 TEST_F(MapTest, ACulledPointIsFreedOnlyWhenTrackingAndQueuedKeyFramesAreDone) {
   KeyFrame* k0 = AddKeyFrame(0);
   KeyFrame* k1 = AddKeyFrame(1);
