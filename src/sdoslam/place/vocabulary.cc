@@ -419,8 +419,9 @@ double Vocabulary::Score(const BowVector& a, const BowVector& b) {
   for (const auto& [w, x] : a) sa += std::abs(x);
   for (const auto& [w, x] : b) sb += std::abs(x);
   if (sa <= 0 || sb <= 0) return 0.0;
-  // For L1-normalised a and b: |a - b|_1 = 2 + sum over common words of
-  // (|a_w - b_w| - a_w - b_w); the words only one of them has need not be visited.
+  // For L1-normalised a and b, |x - y| = x + y - 2 min(x, y) gives
+  // 1 - 0.5 |a - b|_1 = sum over the words both have of min(a_w, b_w): the words only one of
+  // them has need not be visited.
   double common = 0;
   auto ia = a.begin(), ib = b.begin();
   while (ia != a.end() && ib != b.end()) {
@@ -429,13 +430,12 @@ double Vocabulary::Score(const BowVector& a, const BowVector& b) {
     } else if (ib->first < ia->first) {
       ++ib;
     } else {
-      const double x = std::abs(ia->second) / sa, y = std::abs(ib->second) / sb;
-      common += std::abs(x - y) - x - y;
+      common += std::min(std::abs(ia->second) / sa, std::abs(ib->second) / sb);
       ++ia;
       ++ib;
     }
   }
-  return std::clamp(-0.5 * common, 0.0, 1.0);
+  return std::clamp(common, 0.0, 1.0);
 }
 
 std::string Vocabulary::ToBytes() const {
