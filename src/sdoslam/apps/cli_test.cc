@@ -618,5 +618,60 @@ TEST_F(CliRun, AFrontEndOptionInAModeWithoutFrontEndIsAWarning) {
       << r.output;
 }
 
+TEST(CliVocab, BuildsAVocabularyFromImageFoldersAndNamesBadInput) {
+  testing::TempDir dir;
+  // A TUM-layout sequence (images in rgb/) and a plain folder of images.
+  Result r = RunSdoslam("synth --scenario static_room --frames 4 --out " + (dir / "seq").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::filesystem::create_directories(dir / "plain");
+  std::filesystem::copy_file(std::filesystem::directory_iterator(dir / "seq" / "rgb")->path(),
+                             dir / "plain" / "a.png");
+  testing::WriteText(dir / "plain" / "notes.txt", "not an image\n");
+
+  const std::string out = (dir / "v.sdv").string();
+  r = RunSdoslam("vocab build --images " + (dir / "seq").string() + " " + (dir / "plain").string() +
+                 " --branching 8 --depth 3 --out " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("(branching 8, depth 3) from 5 images"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("descriptors, in"), std::string::npos) << r.output;
+  r = RunSdoslam("vocab info " + out);
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("branching 8, depth 3"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("trained on 5 images"), std::string::npos) << r.output;
+  r = RunSdoslam("vocab build --images " + (dir / "seq").string() + " --max-images 2 --out " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("from 2 images"), std::string::npos) << r.output;
+
+  // The built-in vocabulary is in the executable.
+  r = RunSdoslam("vocab info");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("built-in vocabulary: "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("branching 10, depth 4"), std::string::npos) << r.output;
+
+  // Bad input: one message naming the file, exit code 1; usage: exit code 2.
+  const std::string missing = (dir / "missing").string();
+  r = RunSdoslam("vocab build --images " + missing + " --out " + out);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.output, "error: image folder not found: " + missing + "\n");
+  std::filesystem::create_directories(dir / "empty");
+  r = RunSdoslam("vocab build --images " + (dir / "empty").string() + " --out " + out);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.output,
+            "error: " + (dir / "empty").string() + ": no .png or .jpg images (nor in its rgb/)\n");
+  testing::WriteText(dir / "plain" / "b.png", "not a png\n");
+  r = RunSdoslam("vocab build --images " + (dir / "plain").string() + " --out " + out);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.output, "error: cannot read image " + (dir / "plain" / "b.png").string() + "\n");
+  r = RunSdoslam("vocab info " + (dir / "plain" / "a.png").string());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("a.png: not an sdoslam vocabulary (bad magic)"), std::string::npos)
+      << r.output;
+  r = RunSdoslam("vocab build --images " + (dir / "seq").string() + " --branching 1 --out " + out);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("branching must be in 2..255"), std::string::npos) << r.output;
+  EXPECT_EQ(RunSdoslam("vocab build --out " + out).exit_code, 2);
+  EXPECT_EQ(RunSdoslam("vocab").exit_code, 2);
+}
+
 }  // namespace
 }  // namespace sdoslam

@@ -14,6 +14,7 @@
 #include "sdoslam/apps/exit_codes.h"
 #include "sdoslam/apps/run_command.h"
 #include "sdoslam/apps/synth_command.h"
+#include "sdoslam/apps/vocab_command.h"
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/logging.h"
 
@@ -31,6 +32,7 @@ int main(int argc, char** argv) {
   sdoslam::AddBenchCommand(app);
   sdoslam::AddEvalMasksCommand(app);
   sdoslam::AddConvertCommand(app);
+  sdoslam::AddVocabCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::Success& e) {
