@@ -45,10 +45,11 @@ class Vocabulary {
 
   // descriptor_sets: one N x 32 CV_8U matrix (256-bit ORB) per training image. Hierarchical
   // k-medians (centres are bitwise majorities, the binary counterpart of the mean) seeded by
-  // k-means++ from a std::mt19937 with options.seed, node by node breadth-first; word IDF
-  // weight = log(N_images / N_images containing the word). Deterministic for a given seed and
-  // input. Throws Error for bad options, a matrix of the wrong type, or fewer than two
-  // images with descriptors.
+  // greedy k-means++ from a std::mt19937 with options.seed, node by node breadth-first; a node
+  // stays a leaf at `depth`, or when its descriptors are all alike. Word IDF weight =
+  // log(N_images / N_images containing the word), N_images counting every set given, empty
+  // ones too. Deterministic for a given seed and input. Throws Error for bad options, a matrix
+  // of the wrong type, or fewer than two images with descriptors.
   static Vocabulary Train(const std::vector<cv::Mat>& descriptor_sets,
                           const VocabularyOptions& options);
 
