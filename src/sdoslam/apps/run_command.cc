@@ -112,7 +112,7 @@ void RunSlam(const RunArgs& args, const RunCommandOptions& given) {
   const RunSummary s = RunOnDataset(run);
   progress_line.End();
   std::cout << FormatRunSummary(s) << "wrote " << args.out
-            << "/CameraTrajectory.txt, KeyFrameTrajectory.txt, config.yaml, frames.csv, mapping.csv"
+            << "/CameraTrajectory.txt, KeyFrameTrajectory.txt, config.yaml, frames.csv, mapping.csv, loops.csv"
             << (run.save_masks ? ", masks/, features.csv" : "")
             << (run.save_overlays ? ", overlays/" : "") << ", manifest.json\n";
   if (s.masks) std::cout << '\n' << FormatMaskEvaluation(*s.masks, "dynamic masks");

@@ -254,12 +254,24 @@ bool Map::SetBad(KeyFrame* kf) {
   return true;
 }
 
-Eigen::Isometry3d Map::CorrectionOf(const KeyFrame* keyframe) const {
-  // A culled keyframe moved with its first good ancestor.
+void Map::NoteCorrection(std::map<uint64_t, Eigen::Isometry3d> change_by_keyframe) {
+  corrections_.push_back(std::move(change_by_keyframe));
+  if (corrections_.size() > kMaxCorrections) corrections_.pop_front();
+  ++correction_epoch_;
+}
+
+Eigen::Isometry3d Map::CorrectionSince(const KeyFrame* keyframe, uint64_t since) const {
   while (keyframe != nullptr && keyframe->bad) keyframe = keyframe->parent;
-  if (keyframe == nullptr) return Eigen::Isometry3d::Identity();
-  const auto it = last_correction_.find(keyframe->id);
-  return it == last_correction_.end() ? Eigen::Isometry3d::Identity() : it->second;
+  Eigen::Isometry3d change = Eigen::Isometry3d::Identity();
+  if (keyframe == nullptr) return change;
+  // corrections_.back() is epoch correction_epoch_, the one before it epoch − 1, ...
+  const uint64_t first_kept = correction_epoch_ - corrections_.size() + 1;
+  for (uint64_t epoch = std::max(since + 1, first_kept); epoch <= correction_epoch_; ++epoch) {
+    const auto& changes = corrections_[static_cast<size_t>(epoch - first_kept)];
+    const auto it = changes.find(keyframe->id);
+    if (it != changes.end()) change = change * it->second;
+  }
+  return change;
 }
 
 }  // namespace sdoslam

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <deque>
 #include <map>
 #include <memory>
 #include <vector>
@@ -117,13 +118,14 @@ class Map {
   // id, the change D = T_old⁻¹ · T_new of T_camera_world, so that whoever holds poses tied to
   // the old map (tracking's last frame, its scene-flow history, a local BA solved on a copy)
   // can carry them over, T_new = T_old · D, or drop them. The epoch counts corrections.
-  void NoteCorrection(std::map<uint64_t, Eigen::Isometry3d> change_by_keyframe) {
-    last_correction_ = std::move(change_by_keyframe);
-    ++correction_epoch_;
-  }
+  void NoteCorrection(std::map<uint64_t, Eigen::Isometry3d> change_by_keyframe);
   uint64_t correction_epoch() const { return correction_epoch_; }
-  // The last correction's change for `keyframe` or, for one it did not move, identity.
-  Eigen::Isometry3d CorrectionOf(const KeyFrame* keyframe) const;
+  // The change of `keyframe` (identity where a correction did not move it) over the
+  // corrections after epoch `since`, composed in order: a loop's pose graph and its global BA
+  // are two, and tracking may see both at once. A culled keyframe moved with its first good
+  // ancestor. The last kMaxCorrections are kept; older ones count as identity.
+  Eigen::Isometry3d CorrectionSince(const KeyFrame* keyframe, uint64_t since) const;
+  static constexpr size_t kMaxCorrections = 8;
 
  private:
   void SetParent(KeyFrame* keyframe, KeyFrame* parent);
@@ -141,7 +143,7 @@ class Map {
   };
   std::vector<Grave> graveyard_;  // in culling order
   uint64_t correction_epoch_ = 0;
-  std::map<uint64_t, Eigen::Isometry3d> last_correction_;
+  std::deque<std::map<uint64_t, Eigen::Isometry3d>> corrections_;  // the last, oldest first
 };
 
 }  // namespace sdoslam

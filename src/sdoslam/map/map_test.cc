@@ -280,13 +280,13 @@ INSTANTIATE_TEST_SUITE_P(Orders, ChainCulling,
 // Loop closing moves keyframes; tracking carries a frame tied to the old map over with its
 // reference's change. A frame placed through a culled reference moves as that reference's
 // first good ancestor moved, which is where ComposeWithReference puts it.
-TEST_F(MapTest, CorrectionOfACulledKeyFrameIsItsGoodAncestorsAndKeepsFramesOnTheirKeyFrames) {
+TEST_F(MapTest, ACulledKeyFrameMovesWithItsGoodAncestorAndCorrectionsCompose) {
   const std::vector<KeyFrame*> kfs = Chain(4);
   const Eigen::Isometry3d T_frame_k3 = PoseFor(9) * kfs[3]->pose().inverse();
   const Eigen::Isometry3d frame_before = ComposeWithReference(kfs[3], T_frame_k3);
   ASSERT_TRUE(map_.SetBad(kfs[3]));
   EXPECT_EQ(map_.correction_epoch(), 0u);
-  EXPECT_TRUE(map_.CorrectionOf(kfs[2]).isApprox(Eigen::Isometry3d::Identity()));
+  EXPECT_TRUE(map_.CorrectionSince(kfs[2], 0).isApprox(Eigen::Isometry3d::Identity()));
   // A loop moves k2 (k3's parent) and k1.
   Eigen::Isometry3d move = Eigen::Isometry3d::Identity();
   move.linear() = Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitZ()).toRotationMatrix();
@@ -299,12 +299,25 @@ TEST_F(MapTest, CorrectionOfACulledKeyFrameIsItsGoodAncestorsAndKeepsFramesOnThe
   }
   map_.NoteCorrection(changes);
   EXPECT_EQ(map_.correction_epoch(), 1u);
-  EXPECT_TRUE(map_.CorrectionOf(kfs[3]).isApprox(changes.at(kfs[2]->id)));
-  EXPECT_TRUE(map_.CorrectionOf(kfs[0]).isApprox(Eigen::Isometry3d::Identity()));
+  EXPECT_TRUE(map_.CorrectionSince(kfs[3], 0).isApprox(changes.at(kfs[2]->id)));
+  EXPECT_TRUE(map_.CorrectionSince(kfs[0], 0).isApprox(Eigen::Isometry3d::Identity()));
   // The frame's old world pose carried over equals its pose composed through the culled
   // reference after the move.
-  const Eigen::Isometry3d carried = frame_before * map_.CorrectionOf(kfs[3]);
+  const Eigen::Isometry3d carried = frame_before * map_.CorrectionSince(kfs[3], 0);
   EXPECT_TRUE(carried.isApprox(ComposeWithReference(kfs[3], T_frame_k3), 1e-9));
+  // A second correction (a global BA after the pose graph) before tracking looks: the changes
+  // compose, and one already carried over is not applied again.
+  Eigen::Isometry3d nudge = Eigen::Isometry3d::Identity();
+  nudge.translation() = Eigen::Vector3d(0.0, 0.01, -0.02);
+  const Eigen::Isometry3d k2_new = kfs[2]->pose() * nudge;
+  map_.NoteCorrection({{kfs[2]->id, kfs[2]->pose().inverse() * k2_new}});
+  kfs[2]->frame.T_camera_world = k2_new;
+  EXPECT_EQ(map_.correction_epoch(), 2u);
+  EXPECT_TRUE((frame_before * map_.CorrectionSince(kfs[3], 0))
+                  .isApprox(ComposeWithReference(kfs[3], T_frame_k3), 1e-9));
+  EXPECT_TRUE((carried * map_.CorrectionSince(kfs[3], 1))
+                  .isApprox(ComposeWithReference(kfs[3], T_frame_k3), 1e-9));
+  EXPECT_TRUE(map_.CorrectionSince(kfs[3], 2).isApprox(Eigen::Isometry3d::Identity()));
 }
 
 TEST_F(MapTest, ACulledPointIsFreedOnlyWhenTrackingAndQueuedKeyFramesAreDone) {

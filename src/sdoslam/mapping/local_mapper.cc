@@ -330,6 +330,7 @@ void LocalMapper::LocalBundleAdjustment(KeyFrame* kf, MappingResult* result,
     }
   }
   const PinholeIntrinsics intrinsics = kf->frame.geometry->intrinsics;
+  const uint64_t epoch = map_->correction_epoch();
   if (lock.owns_lock()) lock.unlock();
   const auto solve_start = std::chrono::steady_clock::now();
   const std::vector<bool> inlier = BundleAdjust(intrinsics, &ba, options_.bundle_adjustment);
@@ -338,6 +339,14 @@ void LocalMapper::LocalBundleAdjustment(KeyFrame* kf, MappingResult* result,
     const auto wait_start = std::chrono::steady_clock::now();
     lock.lock();
     result->lock_wait_ms += MsSince(wait_start);
+  }
+  result->local_keyframes = static_cast<int>(local.size());
+  result->fixed_keyframes = static_cast<int>(fixed.size());
+  result->local_points = static_cast<int>(points.size());
+  if (map_->correction_epoch() != epoch) {
+    // Loop closing moved the map meanwhile: this solution belongs to the old one.
+    result->ba_discarded = true;
+    return;
   }
   for (size_t k = 0; k < local.size(); ++k) {
     if (!local[k]->bad) local[k]->frame.T_camera_world = ba.poses[k];
@@ -360,9 +369,6 @@ void LocalMapper::LocalBundleAdjustment(KeyFrame* kf, MappingResult* result,
     if (lost_observation.count(p->id)) p->UpdateDescriptor();
     p->UpdateNormalAndDepth();
   }
-  result->local_keyframes = static_cast<int>(local.size());
-  result->fixed_keyframes = static_cast<int>(fixed.size());
-  result->local_points = static_cast<int>(points.size());
 }
 
 // ORB-SLAM2's rule with two changes. It counts only the points whose depth is "close" (below

@@ -36,7 +36,8 @@ struct MappingResult {
   // Milliseconds per stage: keyframe insertion and point culling, triangulation, fusion, local
   // bundle adjustment (its solve without the map lock), keyframe culling.
   double insert_ms = 0, triangulate_ms = 0, fuse_ms = 0, ba_ms = 0, ba_solve_ms = 0, cull_ms = 0;
-  double lock_wait_ms = 0;  // threaded: waiting for the map while tracking held it
+  double lock_wait_ms = 0;    // threaded: waiting for the map while tracking held it
+  bool ba_discarded = false;  // threaded: loop closing moved the map during the solve
 };
 
 // ORB-SLAM's local mapping for RGB-D: insert a keyframe (observations, covisibility), cull

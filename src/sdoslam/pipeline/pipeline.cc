@@ -345,7 +345,7 @@ RunSummary RunOnDataset(const RunOptions& options) {
       "keyframe,check_iterations,check_converged,check_reverted,check_measured,check_dynamic,"
       "culled_points,front_end_ms,segment_ms,detect_ms,flow_ms,classify_ms,features_ms,"
       "tracking_ms,mapping_ms,keyframes,map_points,check_rough_samples,check_static_samples,"
-      "check_replaced,latency_ms,lock_wait_ms\n";
+      "check_replaced,latency_ms,lock_wait_ms,relocalized\n";
   std::string feature_log = "index,x,y,label\n";
   std::vector<double> frame_ms, front_end_ms, mapping_ms, total_ms, latency_ms;
   std::vector<double> segment_ms, detect_ms, flow_ms, classify_ms;
@@ -395,14 +395,15 @@ RunSummary RunOnDataset(const RunOptions& options) {
         r.feature_labels.begin(), r.feature_labels.end(), [](uint8_t l) { return l != 0; }));
     log += fmt::format(
         "{},{:.6f},{},{},{},{},{},{},{},{},{},{},{},{},{},"
-        "{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{},{},{},{},{},{:.2f},{:.2f}\n",
+        "{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{},{},{},{},{},{:.2f},{:.2f},{}\n",
         i, r.timestamp, ToString(r.state), r.features, r.features_with_depth, dynamic_features,
         r.matches, r.inliers, r.keyframe ? 1 : 0, r.check_iterations, r.check_converged ? 1 : 0,
         r.check_reverted ? 1 : 0, r.check_measured, r.check_dynamic, r.culled_points,
         front_timing.total(), front_timing.segment_ms, front_timing.detect_ms, front_timing.flow_ms,
         front_timing.classify_ms, timing.features_ms, timing.tracking_ms, timing.mapping_ms,
         r.keyframes_alive, r.map_points_alive, r.check_rough_samples, r.check_static_samples,
-        r.check_replaced ? 1 : 0, out.latency_ms, timing.lock_wait_ms);
+        r.check_replaced ? 1 : 0, out.latency_ms, timing.lock_wait_ms, r.relocalized ? 1 : 0);
+    if (r.relocalized) summary.relocalizations.push_back(i);
     if (!labels.empty() && mask_evaluator) {
       mask_evaluator->AddFrame(rgb_paths[i], labels, r.feature_points, r.feature_labels);
     }
@@ -446,6 +447,7 @@ RunSummary RunOnDataset(const RunOptions& options) {
   summary.median_latency_ms = ComputeErrorStats(latency_ms).median;
   summary.trajectory = slam.CameraTrajectory();
   summary.mapping = slam.MappingRecords();
+  summary.loops = slam.LoopRecords();
   for (const MappingRecord& m : summary.mapping) mapping_ms.push_back(m.ms);
   summary.keyframe_trajectory = slam.KeyFrameTrajectory();
   summary.tracked = summary.trajectory.size();
@@ -477,6 +479,15 @@ RunSummary RunOnDataset(const RunOptions& options) {
         r.local_keyframes, r.fixed_keyframes, r.local_points, r.culled_keyframes, r.freed_points);
   }
   results.WriteText("mapping.csv", mapping_log);
+  std::string loop_log =
+      "frame_index,loop_frame_index,matches,inliers,projected_inliers,fused_points,"
+      "graph_keyframes,graph_edges,correction_m,ms\n";
+  for (const LoopRecord& l : summary.loops) {
+    loop_log += fmt::format("{},{},{},{},{},{},{},{},{:.4f},{:.2f}\n", l.frame_index,
+                            l.loop_frame_index, l.matches, l.inliers, l.projected_inliers,
+                            l.fused_points, l.graph_keyframes, l.graph_edges, l.correction_m, l.ms);
+  }
+  results.WriteText("loops.csv", loop_log);
   if (run.save_masks) results.WriteText("features.csv", feature_log);
   results.Commit(summary.interrupted ? "interrupted" : "complete",
                  {{"mode", ToString(run.mode)},
@@ -503,20 +514,45 @@ std::string FormatRunProgress(const RunProgress& p) {
                      fps, ToString(p.state), p.keyframes_alive);
 }
 
+namespace {
+
+// "loops closed: 1 (frame 1432 on frame 12, moved 0.041 m); relocalized: 2 (frames 80, 311)".
+std::string FormatPlaceEvents(const RunSummary& s) {
+  std::string loops, relocalized;
+  for (const LoopRecord& l : s.loops) {
+    loops += fmt::format("{}frame {} on frame {}, moved {:.3f} m", loops.empty() ? "" : "; ",
+                         l.frame_index, l.loop_frame_index, l.correction_m);
+  }
+  const size_t shown = std::min<size_t>(s.relocalizations.size(), 10);
+  for (size_t k = 0; k < shown; ++k) {
+    relocalized += fmt::format("{}{}", k == 0 ? "" : ", ", s.relocalizations[k]);
+  }
+  if (shown < s.relocalizations.size()) relocalized += ", ...";
+  return fmt::format("loops closed: {}{}; relocalized: {}{}\n", s.loops.size(),
+                     loops.empty() ? "" : " (" + loops + ")", s.relocalizations.size(),
+                     relocalized.empty() ? "" : " (frames " + relocalized + ")");
+}
+
+}  // namespace
+
 std::string FormatRunSummary(const RunSummary& s) {
   return fmt::format(
-      "{} frames: {} tracked, {} lost, {} before initialisation; {} keyframes, {} map points\n"
-      "median per frame: {:.1f} ms (features + tracking); median local mapping per keyframe: "
-      "{:.1f} ms{}\n"
-      "throughput: {:.1f} ms per frame ({:.1f} fps, loading and every stage included); median "
-      "latency {:.1f} ms\n",
-      s.frames, s.tracked, s.lost, s.not_initialized, s.keyframes, s.map_points, s.median_frame_ms,
-      s.median_mapping_ms,
-      s.median_front_end_ms > 0
-          ? fmt::format("; dynamic front end {:.1f} ms per frame", s.median_front_end_ms)
-          : "",
-      s.wall_ms_per_frame, s.wall_ms_per_frame > 0 ? 1000.0 / s.wall_ms_per_frame : 0.0,
-      s.median_latency_ms);
+             "{} frames: {} tracked, {} lost, {} before initialisation; {} keyframes, {} map "
+             "points\n"
+             "median per frame: {:.1f} ms (features + tracking); median local mapping per "
+             "keyframe: "
+             "{:.1f} ms{}\n"
+             "throughput: {:.1f} ms per frame ({:.1f} fps, loading and every stage included); "
+             "median "
+             "latency {:.1f} ms\n",
+             s.frames, s.tracked, s.lost, s.not_initialized, s.keyframes, s.map_points,
+             s.median_frame_ms, s.median_mapping_ms,
+             s.median_front_end_ms > 0
+                 ? fmt::format("; dynamic front end {:.1f} ms per frame", s.median_front_end_ms)
+                 : "",
+             s.wall_ms_per_frame, s.wall_ms_per_frame > 0 ? 1000.0 / s.wall_ms_per_frame : 0.0,
+             s.median_latency_ms) +
+         FormatPlaceEvents(s);
 }
 
 }  // namespace sdoslam

@@ -170,7 +170,9 @@ struct RunSummary {
   // overlap included) per frame; and the median latency, from a frame's load to its pose.
   double wall_ms_per_frame = 0;
   double median_latency_ms = 0;
-  std::vector<MappingRecord> mapping;  // per keyframe, in processing order
+  std::vector<MappingRecord> mapping;   // per keyframe, in processing order
+  std::vector<LoopRecord> loops;        // loops closed, in order
+  std::vector<size_t> relocalizations;  // frames tracked again after lost ones
   Trajectory trajectory;
   Trajectory keyframe_trajectory;                // the keyframes alive at the end
   std::optional<EstimateEvaluation> evaluation;  // when the dataset has ground truth

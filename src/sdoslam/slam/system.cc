@@ -1,5 +1,6 @@
 #include "sdoslam/slam/system.h"
 
+#include <spdlog/spdlog.h>
 #include <yaml-cpp/yaml.h>
 
 #include <chrono>
@@ -8,6 +9,7 @@
 
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/stopwatch.h"
+#include "sdoslam/place/default_vocabulary.h"
 
 namespace sdoslam {
 
@@ -15,6 +17,7 @@ void SlamOptions::Check() const {
   orb.Check();
   tracking.Check();
   mapping.Check();
+  loop_closing.Check();
   if (!(bf > 0)) throw Error("rgbd.bf must be positive");
   if (!(close_depth_baselines > 0)) throw Error("rgbd.close_depth_baselines must be positive");
   if (max_queued_keyframes < 1) throw Error("mapping.max_queued_keyframes must be >= 1");
@@ -41,6 +44,7 @@ SlamOptions ReadSlamOptions(ConfigMap& root) {
     s->Read("reference_ratio", &o.tracking.reference_ratio);
     s->Read("projection_radius", &o.tracking.projection_radius);
     s->Read("relocalization_candidates", &o.tracking.relocalization_candidates);
+    s->Read("relocalization_place_candidates", &o.tracking.relocalization_place_candidates);
     s->Read("relocalization_prior_frames", &o.tracking.relocalization_prior_frames);
     s->Read("relocalization_radius_factor", &o.tracking.relocalization_radius_factor);
     s->RejectUnknownKeys();
@@ -57,6 +61,17 @@ SlamOptions ReadSlamOptions(ConfigMap& root) {
     s->Read("fixed_keyframes", &o.mapping.fixed_keyframes);
     s->Read("ba_iterations", &o.mapping.bundle_adjustment.iterations);
     s->Read("ba_refine_iterations", &o.mapping.bundle_adjustment.refine_iterations);
+    s->RejectUnknownKeys();
+  }
+  if (auto s = root.Section("loop_closing")) {
+    s->Read("enabled", &o.loop_closing.enabled);
+    s->Read("vocabulary", &o.vocabulary);
+    s->Read("min_keyframes_between", &o.loop_closing.min_keyframes_between);
+    s->Read("consistent_detections", &o.loop_closing.consistent_detections);
+    s->Read("min_matches", &o.loop_closing.min_matches);
+    s->Read("min_inliers", &o.loop_closing.min_inliers);
+    s->Read("min_projected_inliers", &o.loop_closing.min_projected_inliers);
+    s->Read("essential_min_weight", &o.loop_closing.essential_min_weight);
     s->RejectUnknownKeys();
   }
   try {
@@ -81,11 +96,12 @@ void WriteSlamOptions(const SlamOptions& o, YAML::Emitter* out) {
     << YAML::Value << o.tracking.min_inliers << YAML::Key << "max_frames_between_keyframes"
     << YAML::Value << o.tracking.max_frames_between_keyframes << YAML::Key
     << "relocalization_candidates" << YAML::Value << o.tracking.relocalization_candidates
-    << YAML::Key << "relocalization_prior_frames" << YAML::Value
-    << o.tracking.relocalization_prior_frames << YAML::Key << "relocalization_radius_factor"
-    << YAML::Value << o.tracking.relocalization_radius_factor << YAML::Key << "reference_ratio"
-    << YAML::Value << o.tracking.reference_ratio << YAML::Key << "projection_radius" << YAML::Value
-    << o.tracking.projection_radius << YAML::EndMap;
+    << YAML::Key << "relocalization_place_candidates" << YAML::Value
+    << o.tracking.relocalization_place_candidates << YAML::Key << "relocalization_prior_frames"
+    << YAML::Value << o.tracking.relocalization_prior_frames << YAML::Key
+    << "relocalization_radius_factor" << YAML::Value << o.tracking.relocalization_radius_factor
+    << YAML::Key << "reference_ratio" << YAML::Value << o.tracking.reference_ratio << YAML::Key
+    << "projection_radius" << YAML::Value << o.tracking.projection_radius << YAML::EndMap;
   y << YAML::Key << "consistency" << YAML::Value << YAML::BeginMap;
   SceneFlowOptions::VisitFields(o.tracking.consistency, [&](const char* key, const auto& value) {
     y << YAML::Key << key << YAML::Value << value;
@@ -98,6 +114,15 @@ void WriteSlamOptions(const SlamOptions& o, YAML::Emitter* out) {
     << o.mapping.fixed_keyframes << YAML::Key << "ba_iterations" << YAML::Value
     << o.mapping.bundle_adjustment.iterations << YAML::Key << "ba_refine_iterations" << YAML::Value
     << o.mapping.bundle_adjustment.refine_iterations << YAML::EndMap;
+  const LoopClosingOptions& l = o.loop_closing;
+  y << YAML::Key << "loop_closing" << YAML::Value << YAML::BeginMap << YAML::Key << "enabled"
+    << YAML::Value << l.enabled << YAML::Key << "vocabulary" << YAML::Value << o.vocabulary
+    << YAML::Key << "min_keyframes_between" << YAML::Value << l.min_keyframes_between << YAML::Key
+    << "consistent_detections" << YAML::Value << l.consistent_detections << YAML::Key
+    << "min_matches" << YAML::Value << l.min_matches << YAML::Key << "min_inliers" << YAML::Value
+    << l.min_inliers << YAML::Key << "min_projected_inliers" << YAML::Value
+    << l.min_projected_inliers << YAML::Key << "essential_min_weight" << YAML::Value
+    << l.essential_min_weight << YAML::EndMap;
 }
 
 System::System(const CameraOptions& camera, const SlamOptions& options)
@@ -106,9 +131,19 @@ System::System(const CameraOptions& camera, const SlamOptions& options)
   geometry_ = std::make_shared<FrameGeometry>(
       cam, extractor_, options_.bf, options_.close_depth_baselines * options_.bf / camera.fx);
   map_ = std::make_unique<Map>();
-  tracker_ = std::make_unique<Tracker>(map_.get(), options_.tracking);
+  const Vocabulary* vocabulary = &DefaultVocabulary();
+  if (!options_.vocabulary.empty()) {
+    own_vocabulary_ = std::make_unique<Vocabulary>(Vocabulary::Load(options_.vocabulary));
+    vocabulary = own_vocabulary_.get();
+  }
+  places_ = std::make_unique<KeyFramePlaces>(vocabulary);
+  tracker_ = std::make_unique<Tracker>(map_.get(), options_.tracking, places_.get());
   mapper_ = std::make_unique<LocalMapper>(map_.get(), options_.mapping);
-  if (!options_.sequential) mapping_thread_ = std::thread([this] { MappingLoop(); });
+  loop_closer_ = std::make_unique<LoopCloser>(map_.get(), places_.get(), options_.loop_closing);
+  if (!options_.sequential) {
+    mapping_thread_ = std::thread([this] { MappingLoop(); });
+    loop_thread_ = std::thread([this] { LoopLoop(); });
+  }
 }
 
 System::~System() { Shutdown(); }
@@ -120,6 +155,52 @@ void System::Shutdown() {
   }
   queue_changed_.notify_all();
   if (mapping_thread_.joinable()) mapping_thread_.join();
+  // Loop closing after mapping: the keyframes mapping finished last still get their look.
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    loop_stop_ = true;
+  }
+  loop_queue_changed_.notify_all();
+  frame_done_.notify_all();  // a frame that ended in an exception notified nobody
+  if (loop_thread_.joinable()) loop_thread_.join();
+}
+
+void System::LoopLoop() {
+  for (;;) {
+    KeyFrame* keyframe = nullptr;
+    {
+      std::unique_lock<std::mutex> lock(queue_mutex_);
+      loop_queue_changed_.wait(lock, [this] { return loop_stop_ || !loop_queue_.empty(); });
+      if (loop_queue_.empty()) return;
+      keyframe = loop_queue_.front();
+      loop_queue_.pop_front();
+      loop_busy_ = true;
+    }
+    CloseLoops(keyframe);
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    loop_busy_ = false;
+  }
+}
+
+void System::CloseLoops(KeyFrame* keyframe) {
+  LoopResult result;
+  if (options_.sequential) {
+    result = loop_closer_->Process(keyframe);
+  } else {
+    result =
+        loop_closer_->Process(keyframe, &map_mutex_, &frame_done_, [this] { return !in_frame_; });
+  }
+  if (!result.closed) return;
+  spdlog::info("loop closed: frame {} with frame {} ({} inliers, moved {:.3f} m, {:.0f} ms)",
+               result.record.frame_index, result.record.loop_frame_index,
+               result.record.projected_inliers, result.record.correction_m, result.record.ms);
+  std::lock_guard<std::mutex> lock(queue_mutex_);
+  loop_records_.push_back(result.record);
+}
+
+std::vector<LoopRecord> System::LoopRecords() const {
+  std::lock_guard<std::mutex> lock(queue_mutex_);
+  return loop_records_;
 }
 
 void System::MappingLoop() {
@@ -140,7 +221,9 @@ void System::MappingLoop() {
       std::lock_guard<std::mutex> lock(queue_mutex_);
       mapping_busy_ = false;
       mapping_records_.push_back({keyframe->frame.index, ms, result});
+      loop_queue_.push_back(keyframe);
     }
+    loop_queue_changed_.notify_one();
   }
 }
 
@@ -213,6 +296,13 @@ TrackingResult System::Track(PreparedFrame&& prepared, FrameTiming* timing) {
     const auto wait_start = std::chrono::steady_clock::now();
     std::unique_lock<std::mutex> lock(map_mutex_);
     t.lock_wait_ms = MsSince(wait_start);
+    // Cleared however the frame ends, an exception included, or loop correction would wait for
+    // ever.
+    struct InFrame {
+      bool* flag;
+      explicit InFrame(bool* f) : flag(f) { *flag = true; }
+      ~InFrame() { *flag = false; }
+    } in_frame(&in_frame_);
     result = tracker_->Track(std::move(prepared.frame), &keyframe, idle, accepts,
                              prepared.consistency ? &*prepared.consistency : nullptr,
                              options_.sequential ? nullptr : &lock);
@@ -220,11 +310,13 @@ TrackingResult System::Track(PreparedFrame&& prepared, FrameTiming* timing) {
     result.keyframes_alive = map_->GoodKeyFrames();
     result.map_points_alive = map_->GoodPoints();
   }
+  frame_done_.notify_all();
   t.tracking_ms = MsSince(start);
   if (keyframe != nullptr) {
     if (options_.sequential) {
       start = std::chrono::steady_clock::now();
       const MappingResult mapped = mapper_->Process(keyframe);
+      CloseLoops(keyframe);
       t.mapping_ms = MsSince(start);
       mapping_records_.push_back({keyframe->frame.index, t.mapping_ms, mapped});
     } else {

@@ -10,6 +10,7 @@
 #include "sdoslam/core/camera.h"
 #include "sdoslam/core/config.h"
 #include "sdoslam/io/trajectory.h"
+#include "sdoslam/loop/loop_closer.h"
 #include "sdoslam/mapping/local_mapper.h"
 #include "sdoslam/tracking/tracker.h"
 
@@ -23,6 +24,10 @@ struct SlamOptions {
   OrbOptions orb;
   TrackerOptions tracking;
   LocalMapperOptions mapping;
+  LoopClosingOptions loop_closing;
+  // Bag-of-words vocabulary for place recognition (sdoslam vocab build); empty: the one built
+  // into the library.
+  std::string vocabulary;
   double bf = 40.0;                     // virtual stereo baseline × fx (ORB-SLAM2's Kinect value)
   double close_depth_baselines = 40.0;  // "close" = depth < this × baseline (≈3.1 m for TUM)
   // true: local mapping runs inline after each keyframe, and runs are bit-identical.
@@ -101,9 +106,13 @@ class System {
   const Map& map() const { return *map_; }
   // Each processed keyframe's mapping time and statistics, in processing order.
   std::vector<MappingRecord> MappingRecords() const;
+  // Loops closed, in order.
+  std::vector<LoopRecord> LoopRecords() const;
 
  private:
   void MappingLoop();
+  void LoopLoop();
+  void CloseLoops(KeyFrame* keyframe);
 
   SlamOptions options_;
   OrbExtractor extractor_;
@@ -111,8 +120,15 @@ class System {
   std::unique_ptr<Map> map_;
   std::unique_ptr<Tracker> tracker_;
   std::unique_ptr<LocalMapper> mapper_;
+  std::unique_ptr<Vocabulary> own_vocabulary_;  // when options name a file
+  std::unique_ptr<KeyFramePlaces> places_;
+  std::unique_ptr<LoopCloser> loop_closer_;
 
   mutable std::mutex map_mutex_;  // guards the map between tracking and the mapping thread
+  // Guarded by map_mutex_: tracking is inside a frame (it lets go of the lock while it solves);
+  // loop correction waits for frame_done_ until it is not.
+  bool in_frame_ = false;
+  std::condition_variable frame_done_;
   mutable std::mutex queue_mutex_;
   std::condition_variable queue_changed_;
   std::deque<KeyFrame*> queue_;
@@ -120,6 +136,13 @@ class System {
   bool stop_ = false;
   std::vector<MappingRecord> mapping_records_;
   std::thread mapping_thread_;
+  // Threaded: keyframes local mapping has finished, for the loop-closing thread.
+  std::deque<KeyFrame*> loop_queue_;
+  bool loop_busy_ = false;
+  bool loop_stop_ = false;
+  std::condition_variable loop_queue_changed_;
+  std::vector<LoopRecord> loop_records_;
+  std::thread loop_thread_;
 };
 
 }  // namespace sdoslam

@@ -34,6 +34,8 @@ void TrackerOptions::Check() const {
     throw Error("tracking.reference_ratio must be in (0, 1)");
   if (!(projection_radius > 0)) throw Error("tracking.projection_radius must be positive");
   if (relocalization_candidates < 0) throw Error("tracking.relocalization_candidates must be >= 0");
+  if (relocalization_place_candidates < 0)
+    throw Error("tracking.relocalization_place_candidates must be >= 0");
   if (relocalization_prior_frames < 0)
     throw Error("tracking.relocalization_prior_frames must be >= 0");
   if (!(relocalization_radius_factor >= 1))
@@ -41,7 +43,8 @@ void TrackerOptions::Check() const {
   consistency.Check();
 }
 
-Tracker::Tracker(Map* map, const TrackerOptions& options) : map_(map), options_(options) {
+Tracker::Tracker(Map* map, const TrackerOptions& options, KeyFramePlaces* places)
+    : map_(map), places_(places), options_(options) {
   options_.Check();
 }
 
@@ -65,6 +68,15 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
   // Local mapping may have culled the reference keyframe: its features are gone, its parent
   // (never culled) stands in for it.
   while (reference_ != nullptr && reference_->bad) reference_ = reference_->parent;
+  if (map_->correction_epoch() != correction_epoch_) {
+    // Loop closing moved the map: the last frame and the scene-flow history move with the
+    // reference keyframe, or the motion model would predict in the old map and the check would
+    // see the whole room move.
+    const Eigen::Isometry3d change = map_->CorrectionSince(reference_, correction_epoch_);
+    correction_epoch_ = map_->correction_epoch();
+    if (last_frame_ != nullptr) last_frame_->T_camera_world = last_frame_->T_camera_world * change;
+    for (PastFrame& past : history_) past.T_camera_world = past.T_camera_world * change;
+  }
   *new_keyframe = nullptr;
   ++frame_stamp_;
   TrackingResult result;
@@ -137,6 +149,7 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
   for (size_t i = 0; i < frame.size(); ++i)
     result.feature_tracked[i] = frame.map_points[i] != nullptr;
 
+  result.relocalized = ok && state_ == TrackingState::kLost;
   state_ = ok ? TrackingState::kOk : TrackingState::kLost;
   result.state = state_;
   result.T_camera_world = frame.T_camera_world;
@@ -301,8 +314,9 @@ bool Tracker::Relocalize(Frame& frame) {
   // Candidates: the reference keyframe and its best neighbours, then the keyframes made last.
   // The reference alone is not enough: when a person fills the view before tracking is lost,
   // the last keyframes see mostly that person (conventional mode maps it), and the room comes
-  // back in view of older ones. Place recognition (bag of words) will widen this to the whole
-  // map; until then the search stays near where the camera was lost.
+  // back in view of older ones. Then place recognition: the keyframes anywhere in the map whose
+  // bags of words look most like this frame's (a camera carried to another part of the room
+  // while the view was blocked).
   std::vector<KeyFrame*> candidates;
   std::set<uint64_t> chosen;
   auto add = [&](KeyFrame* kf) {
@@ -318,6 +332,13 @@ bool Tracker::Relocalize(Frame& frame) {
     if (!it->second->bad) {
       add(it->second.get());
       ++recent;
+    }
+  }
+  if (places_ != nullptr && places_->size() > 0 && options_.relocalization_place_candidates > 0) {
+    const BowVector bow = places_->Describe(frame);
+    for (const PlaceIndex::Candidate& c : places_->Query(
+             *map_, bow, static_cast<size_t>(options_.relocalization_place_candidates))) {
+      add(map_->keyframes().at(c.id).get());
     }
   }
   const PinholeIntrinsics& k = frame.geometry->intrinsics;

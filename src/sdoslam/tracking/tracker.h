@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "sdoslam/map/map.h"
+#include "sdoslam/place/keyframe_places.h"
 #include "sdoslam/tracking/scene_flow.h"
 
 namespace sdoslam {
@@ -25,6 +26,9 @@ struct TrackerOptions {
   // Lost: the reference keyframe, this many of its best neighbours and this many of the last
   // keyframes are tried, each by descriptor matching and PnP in RANSAC.
   int relocalization_candidates = 5;
+  // ... then this many keyframes from anywhere in the map whose bags of words look most like
+  // the lost frame (place recognition; needs the Tracker's `places`).
+  int relocalization_place_candidates = 5;
   // Lost for fewer than relocalization_prior_frames frames: first the map is searched by
   // projection around where the camera should be (the last pose carried on at the last
   // velocity, then the last pose itself), in windows relocalization_radius_factor times the
@@ -63,6 +67,7 @@ struct TrackingResult {
   int matches = 0;  // map points matched before the final pose optimisation
   int inliers = 0;  // matched map points after it
   bool keyframe = false;
+  bool relocalized = false;                          // tracked again after lost frames
   size_t keyframes_alive = 0, map_points_alive = 0;  // the map's size after this frame
   Eigen::Isometry3d T_camera_world = Eigen::Isometry3d::Identity();
   // Every feature's detected position, its front-end label (0 = static) and whether it ended
@@ -96,7 +101,9 @@ struct TrackingResult {
 // mapping refines them.
 class Tracker {
  public:
-  Tracker(Map* map, const TrackerOptions& options);
+  // `places` (optional): keyframes by their bags of words; relocalization then also tries the
+  // keyframes anywhere in the map that look like the lost frame.
+  Tracker(Map* map, const TrackerOptions& options, KeyFramePlaces* places = nullptr);
 
   // Tracks `frame`. When a keyframe is created it is returned through `new_keyframe`.
   // `mapping_idle`: local mapping has nothing queued (always true when it runs inline);
@@ -171,6 +178,7 @@ class Tracker {
                       const std::vector<MapPoint*>& judged_dynamic, TrackingResult* result);
 
   Map* map_;
+  KeyFramePlaces* places_;
   std::unique_lock<std::mutex>* map_lock_ = nullptr;  // during Track, when given
   double lock_wait_ms_ = 0;
   TrackerOptions options_;
@@ -185,6 +193,7 @@ class Tracker {
   std::vector<std::unique_ptr<MapPoint>> temporary_points_;
   std::vector<TrajectoryEntry> trajectory_;
   uint64_t frame_stamp_ = 0;
+  uint64_t correction_epoch_ = 0;        // of the map's last loop correction carried over
   std::vector<MapPoint*> local_points_;  // of the last TrackLocalMap
   // The last frames' images and poses, for scene flow.
   struct PastFrame {

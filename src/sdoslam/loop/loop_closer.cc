@@ -1,0 +1,501 @@
+#include "sdoslam/loop/loop_closer.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+
+#include "sdoslam/core/error.h"
+#include "sdoslam/core/stopwatch.h"
+#include "sdoslam/optim/optimizer.h"
+#include "sdoslam/tracking/matcher.h"
+
+namespace sdoslam {
+
+void LoopClosingOptions::Check() const {
+  if (min_keyframes_between < 1) throw Error("loop_closing.min_keyframes_between must be >= 1");
+  if (consistent_detections < 0) throw Error("loop_closing.consistent_detections must be >= 0");
+  if (min_matches < 3) throw Error("loop_closing.min_matches must be >= 3");
+  if (min_inliers < 3) throw Error("loop_closing.min_inliers must be >= 3");
+  if (min_projected_inliers < min_inliers)
+    throw Error("loop_closing.min_projected_inliers must be >= loop_closing.min_inliers");
+  if (essential_min_weight < 1) throw Error("loop_closing.essential_min_weight must be >= 1");
+  ransac.Check();
+  pose_graph.Check();
+}
+
+LoopCloser::LoopCloser(Map* map, KeyFramePlaces* places, const LoopClosingOptions& options)
+    : map_(map), places_(places), options_((options.Check(), options)) {}
+
+LoopResult LoopCloser::Process(KeyFrame* keyframe, std::mutex* map_mutex,
+                               std::condition_variable* frame_done,
+                               const std::function<bool()>& between_frames) {
+  LoopResult result;
+  const auto start = std::chrono::steady_clock::now();
+  std::unique_lock<std::mutex> lock;
+  if (map_mutex != nullptr) lock = std::unique_lock<std::mutex>(*map_mutex);
+  if (keyframe->bad) return result;  // culled by local mapping: its features are gone
+  // Described and indexed even with loop closing off: relocalization looks places up too.
+  const BowVector bow = places_->Describe(keyframe->frame);
+  const std::vector<KeyFrame*> candidates =
+      options_.enabled ? DetectCandidates(keyframe, bow) : std::vector<KeyFrame*>{};
+  places_->Add(keyframe, bow);
+  result.detect_ms = MsSince(start);
+  if (candidates.empty()) return result;
+  result.detected = true;
+  // Verification searches the map by projection and correction moves it: neither may meet a
+  // frame that tracking has half done.
+  if (lock.owns_lock() && frame_done != nullptr && between_frames)
+    frame_done->wait(lock, between_frames);
+  if (keyframe->bad) return result;
+  for (KeyFrame* candidate : candidates) {
+    if (candidate->bad) continue;
+    Verified verified;
+    if (!Verify(keyframe, candidate, &verified)) continue;
+    Correct(keyframe, verified, &result.record);
+    if (options_.global_bundle_adjustment)
+      GlobalBundleAdjustment(&lock, frame_done, between_frames, &result.record);
+    result.closed = true;
+    groups_.clear();
+    last_loop_keyframe_ = keyframe->id;
+    closed_any_ = true;
+    break;
+  }
+  result.record.ms = MsSince(start);
+  return result;
+}
+
+std::vector<KeyFrame*> LoopCloser::DetectCandidates(KeyFrame* keyframe, const BowVector& bow) {
+  if (map_->GoodKeyFrames() <= static_cast<size_t>(options_.min_keyframes_between) ||
+      (closed_any_ && keyframe->id < last_loop_keyframe_ + options_.min_keyframes_between) ||
+      bow.empty()) {
+    groups_.clear();
+    return {};
+  }
+  // The least similar of the keyframe's covisible neighbours sets the bar: a loop candidate
+  // must look at least as much like this keyframe as the keyframes that share its view.
+  double min_score = 1.0;
+  bool any_neighbour = false;
+  for (const KeyFrame* n : keyframe->best_covisible) {
+    if (n->bad) continue;
+    const BowVector* other = places_->Find(n->id);
+    if (other == nullptr) continue;
+    min_score = std::min(min_score, Vocabulary::Score(bow, *other));
+    any_neighbour = true;
+  }
+  if (!any_neighbour) min_score = 0;
+  std::set<uint64_t> connected{keyframe->id};
+  for (const auto& [id, weight] : keyframe->covisibility) connected.insert(id);
+  const auto found =
+      places_->Query(*map_, bow, 64, [&](uint64_t id) { return connected.count(id) == 0; });
+  std::map<uint64_t, double> score;
+  for (const PlaceIndex::Candidate& c : found) {
+    if (c.score >= min_score) score[c.id] = c.score;
+  }
+  spdlog::debug(
+      "loop: keyframe {} (frame {}): min score {:.3f}, {} found, {} above, best {} {:.3f}",
+      keyframe->id, keyframe->frame.index, min_score, found.size(), score.size(),
+      found.empty() ? 0 : found[0].id, found.empty() ? 0.0 : found[0].score);
+  if (score.empty()) {
+    groups_.clear();
+    return {};
+  }
+  // ORB-SLAM2's accumulated score: a place is seen by several keyframes; a candidate counts
+  // with its covisible neighbours that were found too, and stands for its group by the best
+  // single score in it.
+  struct Scored {
+    KeyFrame* best;
+    double accumulated;
+  };
+  std::vector<Scored> scored;
+  double best_accumulated = 0;
+  for (const auto& [id, s] : score) {
+    KeyFrame* candidate = map_->keyframes().at(id).get();
+    double accumulated = s, best_score = s;
+    KeyFrame* best = candidate;
+    for (KeyFrame* n : candidate->Covisible(10)) {
+      const auto it = score.find(n->id);
+      if (it == score.end()) continue;
+      accumulated += it->second;
+      if (it->second > best_score) {
+        best_score = it->second;
+        best = n;
+      }
+    }
+    scored.push_back({best, accumulated});
+    best_accumulated = std::max(best_accumulated, accumulated);
+  }
+  std::vector<KeyFrame*> representatives;
+  std::set<uint64_t> chosen;
+  for (const Scored& s : scored) {
+    if (s.accumulated >= 0.75 * best_accumulated && chosen.insert(s.best->id).second)
+      representatives.push_back(s.best);
+  }
+  // Consistency over consecutive keyframes: a group (a representative and its covisible
+  // keyframes) continues a group of the previous keyframe when they share a keyframe.
+  std::vector<Group> groups;
+  std::vector<bool> continued(groups_.size(), false);
+  std::vector<KeyFrame*> accepted;
+  for (KeyFrame* r : representatives) {
+    Group group;
+    group.keyframes.insert(r->id);
+    for (const auto& [id, weight] : r->covisibility) group.keyframes.insert(id);
+    bool enough = false, any = false;
+    for (size_t g = 0; g < groups_.size(); ++g) {
+      const bool shares = std::any_of(group.keyframes.begin(), group.keyframes.end(),
+                                      [&](uint64_t id) { return groups_[g].keyframes.count(id); });
+      if (!shares) continue;
+      any = true;
+      const int consistency = groups_[g].consistency + 1;
+      if (!continued[g]) {
+        groups.push_back({group.keyframes, consistency});
+        continued[g] = true;
+      }
+      if (consistency >= options_.consistent_detections && !enough) {
+        accepted.push_back(r);
+        enough = true;
+      }
+    }
+    if (!any) {
+      groups.push_back({group.keyframes, 0});
+      if (options_.consistent_detections == 0) accepted.push_back(r);
+    }
+  }
+  groups_ = std::move(groups);
+  spdlog::debug("loop: {} representatives, {} groups, {} accepted", representatives.size(),
+                groups_.size(), accepted.size());
+  return accepted;
+}
+
+bool LoopCloser::Verify(KeyFrame* keyframe, KeyFrame* candidate, Verified* verified) {
+  Frame probe = keyframe->frame;
+  std::fill(probe.map_points.begin(), probe.map_points.end(), nullptr);
+  verified->matches = SearchByDescriptor(probe, *candidate);
+  spdlog::debug("loop: verify keyframe {} against {}: {} matches", keyframe->id, candidate->id,
+                verified->matches);
+  if (verified->matches < options_.min_matches) return false;
+  // The keyframe's own measurement of each matched point, in its camera frame, against the
+  // point where the loop side put it: the rigid motion between them is the keyframe's pose in
+  // the loop side's map.
+  std::vector<Eigen::Vector3d> world, camera;
+  std::vector<int> feature;
+  std::vector<MapPoint*> matched_point;
+  const Eigen::Isometry3d& T_old = keyframe->pose();
+  for (size_t i = 0; i < probe.size(); ++i) {
+    MapPoint* p = probe.map_points[i];
+    if (p == nullptr || p->bad || !probe.HasDepth(static_cast<int>(i))) continue;
+    matched_point.push_back(p);
+    world.push_back(p->position);
+    camera.push_back(T_old * probe.UnprojectWorld(static_cast<int>(i)));
+    feature.push_back(static_cast<int>(i));
+  }
+  const RigidRansacResult ransac = EstimateRigidTransformRansac(world, camera, options_.ransac);
+  spdlog::debug("loop: ransac {} inliers of {}", ransac.num_inliers, world.size());
+  if (!ransac.found || ransac.num_inliers < options_.min_inliers) return false;
+
+  // Refined on the reprojection error of the inliers, then widened to every point of the loop
+  // side in view.
+  std::fill(probe.map_points.begin(), probe.map_points.end(), nullptr);
+  for (size_t k = 0; k < feature.size(); ++k) {
+    if (ransac.inlier[k]) probe.map_points[static_cast<size_t>(feature[k])] = matched_point[k];
+  }
+  auto optimize = [&](Frame& f) {
+    std::vector<int> index;
+    std::vector<Eigen::Vector3d> points;
+    std::vector<PointObservation> observations;
+    for (size_t i = 0; i < f.size(); ++i) {
+      const MapPoint* p = f.map_points[i];
+      if (p == nullptr || p->bad) continue;
+      index.push_back(static_cast<int>(i));
+      points.push_back(p->position);
+      observations.push_back(f.Observation(static_cast<int>(i)));
+    }
+    if (index.size() < 10) return 0;
+    const PoseOptimizationResult r =
+        OptimizePose(f.geometry->intrinsics, f.T_camera_world, points, observations);
+    f.T_camera_world = r.T_camera_world;
+    for (size_t k = 0; k < index.size(); ++k) {
+      if (!r.inlier[k]) f.map_points[static_cast<size_t>(index[k])] = nullptr;
+    }
+    return r.num_inliers;
+  };
+  probe.T_camera_world = ransac.T_b_a;
+  verified->inliers = optimize(probe);
+  if (verified->inliers < options_.min_inliers) return false;
+
+  std::vector<MapPoint*> loop_points;
+  std::set<uint64_t> seen;
+  auto collect = [&](const KeyFrame* kf) {
+    for (MapPoint* p : kf->frame.map_points) {
+      if (p != nullptr && !p->bad && seen.insert(p->id).second) loop_points.push_back(p);
+    }
+  };
+  collect(candidate);
+  for (const KeyFrame* n : candidate->best_covisible) {
+    if (!n->bad) collect(n);
+  }
+  // A stamp space of its own (top bit set), apart from tracking's frame stamps.
+  const uint64_t stamp = (uint64_t{1} << 63) | ++search_stamp_;
+  for (MapPoint* p : probe.map_points) {
+    if (p != nullptr) p->last_seen_frame = stamp;
+  }
+  SearchLocalPoints(probe, loop_points, stamp, 2.0, false);
+  verified->projected_inliers = optimize(probe);
+  spdlog::debug("loop: {} inliers after the pose, {} after the projection search",
+                verified->inliers, verified->projected_inliers);
+  if (verified->projected_inliers < options_.min_projected_inliers) return false;
+  verified->loop = candidate;
+  verified->T_camera_world = probe.T_camera_world;
+  verified->matched = probe.map_points;
+  return true;
+}
+
+void LoopCloser::Correct(KeyFrame* keyframe, const Verified& verified, LoopRecord* record) {
+  KeyFrame* loop = verified.loop;
+  record->frame_index = keyframe->frame.index;
+  record->loop_frame_index = loop->frame.index;
+  record->keyframe_id = keyframe->id;
+  record->loop_keyframe_id = loop->id;
+  record->matches = verified.matches;
+  record->inliers = verified.inliers;
+  record->projected_inliers = verified.projected_inliers;
+  record->correction_m =
+      (keyframe->CameraCentre() - verified.T_camera_world.inverse().translation()).norm();
+
+  std::map<uint64_t, Eigen::Isometry3d> before;  // every good keyframe's pose before the loop
+  for (const auto& [id, kf] : map_->keyframes()) {
+    if (!kf->bad) before[id] = kf->pose();
+  }
+  // 1. The keyframe and its neighbours move rigidly to the loop, and their points with them.
+  std::vector<KeyFrame*> connected{keyframe};
+  std::set<uint64_t> connected_ids{keyframe->id};
+  for (KeyFrame* n : keyframe->best_covisible) {
+    if (!n->bad && connected_ids.insert(n->id).second) connected.push_back(n);
+  }
+  const Eigen::Isometry3d change = keyframe->pose().inverse() * verified.T_camera_world;
+  std::map<uint64_t, uint64_t> corrected_by;  // point id -> keyframe whose move it followed
+  for (KeyFrame* kf : connected) {
+    const Eigen::Isometry3d T_new = kf->pose() * change;
+    const Eigen::Isometry3d to_new = T_new.inverse() * kf->pose();  // old world -> new world
+    for (MapPoint* p : kf->frame.map_points) {
+      if (p == nullptr || p->bad || !corrected_by.emplace(p->id, kf->id).second) continue;
+      p->position = to_new * p->position;
+    }
+    kf->frame.T_camera_world = T_new;
+  }
+  for (KeyFrame* kf : connected) {
+    for (MapPoint* p : kf->frame.map_points) {
+      if (p != nullptr && !p->bad) p->UpdateNormalAndDepth();
+    }
+  }
+
+  // 2. The matched points become the loop side's, and the loop side's points are fused into
+  // the neighbours: the map holds each place once.
+  int fused = 0;
+  for (size_t i = 0; i < verified.matched.size(); ++i) {
+    MapPoint* q = verified.matched[i];
+    if (q == nullptr || q->bad) continue;
+    MapPoint* p = keyframe->frame.map_points[i];
+    if (p != nullptr && !p->bad) {
+      if (p != q) {
+        map_->Replace(p, q);
+        ++fused;
+      }
+    } else if (!q->observations.count(keyframe->id)) {
+      map_->AddObservation(q, keyframe, static_cast<int>(i));
+      q->UpdateFromObservations();
+      ++fused;
+    }
+  }
+  std::vector<MapPoint*> loop_points;
+  std::set<uint64_t> seen;
+  auto collect = [&](const KeyFrame* kf) {
+    for (MapPoint* p : kf->frame.map_points) {
+      if (p != nullptr && !p->bad && seen.insert(p->id).second) loop_points.push_back(p);
+    }
+  };
+  collect(loop);
+  for (const KeyFrame* n : loop->best_covisible) {
+    if (!n->bad) collect(n);
+  }
+  std::map<uint64_t, std::set<uint64_t>> linked_before;
+  for (KeyFrame* kf : connected) {
+    if (kf->bad) continue;
+    for (const auto& [id, weight] : kf->covisibility) linked_before[kf->id].insert(id);
+    fused += Fuse(*map_, kf, loop_points);
+  }
+  record->fused_points = fused;
+  // 3. New covisibility links across the loop are its edges in the essential graph.
+  for (KeyFrame* kf : connected) {
+    if (kf->bad) continue;
+    map_->UpdateConnections(kf);
+    for (const auto& [id, weight] : kf->covisibility) {
+      if (connected_ids.count(id) || linked_before[kf->id].count(id)) continue;
+      loop_edges_.insert(std::minmax(kf->id, id));
+    }
+  }
+  loop_edges_.insert(std::minmax(keyframe->id, loop->id));
+
+  // 4. The pose graph spreads the correction: the loop keyframe holds the gauge, spanning-tree
+  // and strong covisibility edges keep the odometry measured before the loop, loop edges what
+  // the loop measured.
+  PoseGraphProblem graph;
+  std::map<uint64_t, int> node;
+  std::vector<KeyFrame*> keyframes;
+  std::vector<KeyFrame*> pending;  // made by tracking, not yet inserted by local mapping
+  for (const auto& [id, kf] : map_->keyframes()) {
+    if (kf->bad) continue;
+    if (kf->parent == nullptr && kf->covisibility.empty() && id != 0) {
+      pending.push_back(kf.get());
+      continue;
+    }
+    node[id] = static_cast<int>(graph.poses.size());
+    graph.poses.push_back(kf->pose());
+    graph.fixed.push_back(kf.get() == loop);
+    keyframes.push_back(kf.get());
+  }
+  const std::vector<Eigen::Isometry3d> pre_graph = graph.poses;
+  auto measured = [&](uint64_t i, uint64_t j) {
+    const auto bi = before.find(i), bj = before.find(j);
+    if (bi != before.end() && bj != before.end())
+      return Eigen::Isometry3d(bi->second * bj->second.inverse());
+    return Eigen::Isometry3d(graph.poses[static_cast<size_t>(node.at(i))] *
+                             graph.poses[static_cast<size_t>(node.at(j))].inverse());
+  };
+  std::set<std::pair<uint64_t, uint64_t>> added;
+  auto add_edge = [&](uint64_t i, uint64_t j, const Eigen::Isometry3d& T_i_j) {
+    if (!node.count(i) || !node.count(j) || i == j || !added.insert(std::minmax(i, j)).second)
+      return;
+    graph.edges.push_back({node.at(i), node.at(j), T_i_j, 1.0});
+  };
+  for (const auto& [a, b] : loop_edges_) {
+    if (!node.count(a) || !node.count(b)) continue;
+    add_edge(a, b,
+             graph.poses[static_cast<size_t>(node.at(a))] *
+                 graph.poses[static_cast<size_t>(node.at(b))].inverse());
+  }
+  for (KeyFrame* kf : keyframes) {
+    if (kf->parent != nullptr) add_edge(kf->id, kf->parent->id, measured(kf->id, kf->parent->id));
+    for (const auto& [id, weight] : kf->covisibility) {
+      if (weight >= options_.essential_min_weight && id < kf->id)
+        add_edge(kf->id, id, measured(kf->id, id));
+    }
+  }
+  record->graph_keyframes = static_cast<int>(graph.poses.size());
+  record->graph_edges = static_cast<int>(graph.edges.size());
+  OptimizePoseGraph(&graph, options_.pose_graph);
+
+  // 5. Every point follows the keyframe it was corrected with, or its reference keyframe.
+  std::map<uint64_t, Eigen::Isometry3d> to_new;  // keyframe id -> pre-graph world -> new world
+  for (size_t k = 0; k < keyframes.size(); ++k) {
+    to_new[keyframes[k]->id] = graph.poses[k].inverse() * pre_graph[k];
+    keyframes[k]->frame.T_camera_world = graph.poses[k];
+  }
+  // A keyframe still queued for local mapping has no edges yet; it was made a moment ago, next
+  // to the keyframe that closed the loop, and moves with it.
+  const Eigen::Isometry3d keyframe_change = before.at(keyframe->id).inverse() * keyframe->pose();
+  for (KeyFrame* kf : pending) {
+    const Eigen::Isometry3d T_new = kf->pose() * keyframe_change;
+    to_new[kf->id] = T_new.inverse() * kf->pose();
+    kf->frame.T_camera_world = T_new;
+    keyframes.push_back(kf);
+  }
+  for (const auto& [id, p] : map_->points()) {
+    if (p->bad) continue;
+    const auto by = corrected_by.find(id);
+    const KeyFrame* ref = nullptr;
+    if (by != corrected_by.end() && !map_->keyframes().at(by->second)->bad) {
+      ref = map_->keyframes().at(by->second).get();
+    } else {
+      ref = p->reference;
+      while (ref != nullptr && ref->bad) ref = ref->parent;
+    }
+    if (ref == nullptr) continue;
+    const auto it = to_new.find(ref->id);
+    if (it == to_new.end()) continue;
+    p->position = it->second * p->position;
+    p->UpdateNormalAndDepth();
+  }
+  std::map<uint64_t, Eigen::Isometry3d> change_by_keyframe;
+  for (KeyFrame* kf : keyframes) {
+    const auto b = before.find(kf->id);
+    if (b != before.end()) change_by_keyframe[kf->id] = b->second.inverse() * kf->pose();
+  }
+  map_->NoteCorrection(std::move(change_by_keyframe));
+}
+
+void LoopCloser::GlobalBundleAdjustment(std::unique_lock<std::mutex>* lock,
+                                        std::condition_variable* frame_done,
+                                        const std::function<bool()>& between_frames,
+                                        LoopRecord* record) {
+  const auto start = std::chrono::steady_clock::now();
+  BundleAdjustmentProblem ba;
+  std::vector<KeyFrame*> keyframes;
+  std::map<uint64_t, int> pose_index;
+  for (const auto& [id, kf] : map_->keyframes()) {
+    // Keyframes local mapping has not inserted yet have no observations to fit.
+    if (kf->bad || (kf->parent == nullptr && id != 0)) continue;
+    pose_index[id] = static_cast<int>(ba.poses.size());
+    ba.poses.push_back(kf->pose());
+    ba.pose_fixed.push_back(keyframes.empty());  // the first keyframe holds the gauge
+    keyframes.push_back(kf.get());
+  }
+  std::vector<MapPoint*> points;
+  for (const auto& [id, p] : map_->points()) {
+    if (p->bad) continue;
+    int observed = 0;
+    for (const auto& [kf_id, obs] : p->observations) observed += pose_index.count(kf_id) > 0;
+    if (observed < 2) continue;
+    const int index = static_cast<int>(points.size());
+    points.push_back(p.get());
+    ba.points.push_back(p->position);
+    for (const auto& [kf_id, obs] : p->observations) {
+      const auto it = pose_index.find(kf_id);
+      if (it == pose_index.end()) continue;
+      ba.observations.push_back({it->second, index, obs.first->frame.Observation(obs.second)});
+    }
+  }
+  if (keyframes.size() < 2 || points.empty()) return;
+  const PinholeIntrinsics intrinsics = keyframes.front()->frame.geometry->intrinsics;
+  const uint64_t epoch = map_->correction_epoch();
+  const bool unlocked = lock->owns_lock();
+  if (unlocked) lock->unlock();
+  BundleAdjust(intrinsics, &ba, options_.global_ba);
+  if (unlocked) {
+    lock->lock();
+    if (frame_done != nullptr && between_frames) frame_done->wait(*lock, between_frames);
+  }
+  record->global_ba_ms = MsSince(start);
+  if (map_->correction_epoch() != epoch) {
+    record->global_ba_discarded = true;
+    return;
+  }
+  // Points made meanwhile (threaded) follow their reference keyframe's move.
+  std::map<uint64_t, Eigen::Isometry3d> change_by_keyframe, to_new;
+  for (size_t k = 0; k < keyframes.size(); ++k) {
+    KeyFrame* kf = keyframes[k];
+    if (kf->bad) continue;
+    change_by_keyframe[kf->id] = kf->pose().inverse() * ba.poses[k];
+    to_new[kf->id] = ba.poses[k].inverse() * kf->pose();
+    kf->frame.T_camera_world = ba.poses[k];
+  }
+  std::set<uint64_t> adjusted;
+  for (size_t i = 0; i < points.size(); ++i) {
+    if (points[i]->bad) continue;
+    points[i]->position = ba.points[i];
+    adjusted.insert(points[i]->id);
+  }
+  for (const auto& [id, p] : map_->points()) {
+    if (p->bad) continue;
+    if (!adjusted.count(id)) {
+      const KeyFrame* ref = p->reference;
+      while (ref != nullptr && ref->bad) ref = ref->parent;
+      const auto it = ref != nullptr ? to_new.find(ref->id) : to_new.end();
+      if (it != to_new.end()) p->position = it->second * p->position;
+    }
+    p->UpdateNormalAndDepth();
+  }
+  map_->NoteCorrection(std::move(change_by_keyframe));
+}
+
+}  // namespace sdoslam

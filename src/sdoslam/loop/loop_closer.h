@@ -1,0 +1,122 @@
+#pragma once
+
+#include <condition_variable>
+#include <functional>
+#include <map>
+#include <mutex>
+#include <set>
+#include <vector>
+
+#include "sdoslam/map/map.h"
+#include "sdoslam/optim/optimizer.h"
+#include "sdoslam/optim/pose_graph.h"
+#include "sdoslam/optim/rigid_ransac.h"
+#include "sdoslam/place/keyframe_places.h"
+
+namespace sdoslam {
+
+struct LoopClosingOptions {
+  bool enabled = true;
+  // No loop is looked for in the first keyframes of a run nor within this many keyframes of
+  // the last loop closed (ORB-SLAM2: 10): a fresh map has nothing to close, and a loop just
+  // closed would be found again.
+  int min_keyframes_between = 10;
+  // A candidate is taken only when the groups around it (the candidate and its covisible
+  // keyframes) were found for this many consecutive keyframes after the first: one look-alike
+  // keyframe is not a loop. ORB-SLAM2 asks 3, with a keyframe every few frames; this tracker
+  // makes one every 30-50 frames where the view is full of close points (the long loop: 19 in
+  // 650 frames), so 3 would ask for 4-6 s of revisit. The geometric check (RANSAC, then 40
+  // inliers after a projection search) guards against look-alikes.
+  int consistent_detections = 1;
+  // Geometric verification: descriptor matches with the candidate's map points, inliers of the
+  // 3-D–3-D RANSAC and of the pose optimisation, then matches with the whole loop side
+  // projected at the corrected pose.
+  int min_matches = 20;
+  int min_inliers = 20;
+  int min_projected_inliers = 40;
+  // Essential graph: covisibility edges of at least this weight (shared points) join the
+  // spanning tree and the loop edges in the pose graph (ORB-SLAM2: 100).
+  int essential_min_weight = 100;
+  RigidRansacOptions ransac;
+  PoseGraphOptions pose_graph;
+  // After the pose graph, a bundle adjustment of every keyframe and point (ORB-SLAM2's global
+  // BA): the pose graph moves keyframes as rigid bodies, the BA then fits them to the points
+  // both visits see. Threaded, it is solved without the map lock.
+  bool global_bundle_adjustment = true;
+  BundleAdjustmentOptions global_ba{10, 10};
+  void Check() const;
+};
+
+// One loop closed, for the run log.
+struct LoopRecord {
+  size_t frame_index = 0;       // the frame of the keyframe that closed the loop
+  size_t loop_frame_index = 0;  // the frame of the keyframe it closed on (the revisited place)
+  uint64_t keyframe_id = 0, loop_keyframe_id = 0;
+  int matches = 0, inliers = 0, projected_inliers = 0;
+  int fused_points = 0;
+  int graph_keyframes = 0, graph_edges = 0;
+  double correction_m = 0;  // how far the keyframe moved, metres
+  double ms = 0;
+  double global_ba_ms = 0;           // 0: not run
+  bool global_ba_discarded = false;  // threaded: the map was corrected again meanwhile
+};
+
+// What the loop closer did with one keyframe.
+struct LoopResult {
+  bool detected = false;  // a candidate passed the consistency test
+  bool closed = false;    // ... and the geometric check, and the map was corrected
+  LoopRecord record;
+  double detect_ms = 0;
+};
+
+// ORB-SLAM2's loop closing for RGB-D (SE(3): depth fixes the scale): after local mapping, each
+// keyframe is looked up among the keyframes not connected to it; a candidate found for
+// consistent_detections keyframes in a row is checked geometrically (descriptor matches, 3-D–3-D
+// RANSAC, pose optimisation, a projection search of the loop side); then the keyframe and its
+// neighbours are moved to the loop, duplicated points fused, and the pose graph over the
+// essential graph spreads the correction over the map.
+class LoopCloser {
+ public:
+  LoopCloser(Map* map, KeyFramePlaces* places, const LoopClosingOptions& options);
+
+  // Processes a keyframe that local mapping has finished. Without `map_mutex` (sequential) it
+  // runs as one step. With it (threaded), detection holds the lock briefly, and the correction
+  // waits, lock held, until `between_frames` says tracking is not inside a frame (`frame_done`
+  // is notified when that changes), so that no frame is half in the old map and half in the
+  // new.
+  LoopResult Process(KeyFrame* keyframe, std::mutex* map_mutex = nullptr,
+                     std::condition_variable* frame_done = nullptr,
+                     const std::function<bool()>& between_frames = {});
+
+ private:
+  struct Group {
+    std::set<uint64_t> keyframes;
+    int consistency = 0;
+  };
+  // Candidates that passed the consistency test.
+  std::vector<KeyFrame*> DetectCandidates(KeyFrame* keyframe, const BowVector& bow);
+  struct Verified {
+    KeyFrame* loop = nullptr;
+    Eigen::Isometry3d T_camera_world = Eigen::Isometry3d::Identity();  // keyframe's, corrected
+    std::vector<MapPoint*> matched;  // per feature of the keyframe: the loop side's point
+    int matches = 0, inliers = 0, projected_inliers = 0;
+  };
+  bool Verify(KeyFrame* keyframe, KeyFrame* candidate, Verified* verified);
+  void Correct(KeyFrame* keyframe, const Verified& verified, LoopRecord* record);
+  // Solved without `lock` when it holds one; written back once tracking is between frames.
+  void GlobalBundleAdjustment(std::unique_lock<std::mutex>* lock,
+                              std::condition_variable* frame_done,
+                              const std::function<bool()>& between_frames, LoopRecord* record);
+
+  Map* map_;
+  KeyFramePlaces* places_;
+  LoopClosingOptions options_;
+  std::vector<Group> groups_;  // consistent groups of the last keyframe
+  uint64_t last_loop_keyframe_ = 0;
+  bool closed_any_ = false;
+  // Loop edges of the essential graph: pairs of keyframe ids, kept across loops.
+  std::set<std::pair<uint64_t, uint64_t>> loop_edges_;
+  uint64_t search_stamp_ = 0;
+};
+
+}  // namespace sdoslam
