@@ -10,25 +10,42 @@
 namespace sdoslam::synth {
 
 // Camera motions modelled on the TUM RGB-D dynamic sequences (and OMD's "unconstrained").
-enum class CameraMotion { kStatic, kXyz, kRpy, kHalfsphere, kUnconstrained, kLoop };
+// kLongLoop: a handheld walk once around the room's centre, looking out at the walls and
+// furniture, that ends by retracing its first stretch (see LongLoopPoseAtArc).
+enum class CameraMotion { kStatic, kXyz, kRpy, kHalfsphere, kUnconstrained, kLoop, kLongLoop };
 CameraMotion ParseCameraMotion(const std::string& name);  // throws Error listing the names
 std::string ToString(CameraMotion motion);
 std::vector<std::string> CameraMotionNames();
 
 // Camera pose at time t of a sequence lasting `duration` seconds (the loop closes at t =
-// duration). World frame: x right, y into the room, z up; camera: x right, y down, z forward.
+// duration, the long loop before it: see below). World frame: x right, y into the room, z up;
+// camera: x right, y down, z forward.
 Eigen::Isometry3d CameraPoseAt(CameraMotion motion, double t, double duration);
+
+// The long loop (kLongLoop), exposed for its tests: an 8.5 m closed curve walked once, then on
+// along its first metres again, so that the last seconds see again what the first saw.
+//
+// The frames at 30 Hz it is made for (about 0.45 m/s); fewer walk faster than a hand-held camera.
+inline constexpr int kLongLoopFrames = 650;
+double LongLoopLength();   // one lap, metres
+double LongLoopRetrace();  // metres walked again after the lap
+// Arc length walked by time t of a sequence of `duration` seconds; starts and ends at rest.
+double LongLoopArcAt(double t, double duration);
+// The camera at arc length s; periodic: the pose at s + LongLoopLength() is the pose at s.
+Eigen::Isometry3d LongLoopPoseAtArc(double s);
 
 struct Scenario {
   std::string name;
   std::string description;
   CameraMotion motion = CameraMotion::kStatic;
   Scene scene;
+  // SensorOptions::depth_distortion for this scenario (the default sensor has none).
+  double depth_distortion = 0.0;
 };
 
 // The named scenarios: static_room, walking_static, walking_xyz, walking_rpy,
 // walking_halfsphere, boxes_translational, boxes_unconstrained, mixed, loop, box_alongside,
-// parked_cart.
+// parked_cart, long_loop, long_loop_people.
 std::vector<std::string> ScenarioNames();
 
 // Builds scenario `name` for a sequence of `duration` seconds; `motion` overrides its camera

@@ -13,6 +13,7 @@ void SensorOptions::Check() const {
   };
   require(image_noise_sigma >= 0 && image_noise_sigma < 100, "image_noise_sigma");
   require(depth_noise_a >= 0 && depth_noise_b >= 0, "depth_noise_a/b");
+  require(depth_distortion > -0.5 && depth_distortion < 0.5, "depth_distortion");
   require(silhouette_jump > 0, "silhouette_jump");
   require(exposure_amplitude >= 0 && exposure_amplitude < 1, "exposure_amplitude");
   require(motion_blur_samples >= 0 && motion_blur_samples <= 64, "motion_blur_samples");
@@ -58,6 +59,11 @@ SensorFrame Sense(const RenderedView& view, const CameraOptions& camera,
         }
         const double sigma = options.depth_noise_a + options.depth_noise_b * (z - 0.4) * (z - 0.4);
         z += sigma * unit_normal(rng);
+        if (options.depth_distortion != 0) {
+          const double du = (u - 0.5 * (w - 1)) / (0.5 * w), dv = (v - 0.5 * (h - 1)) / (0.5 * h);
+          const double rho2 = (du * du * w * w + dv * dv * h * h) / (w * w + h * h);
+          z *= 1.0 + options.depth_distortion * rho2;
+        }
       }
       const double raw = std::round(z * camera.depth_factor);
       d[u] = missing || raw <= 0 || raw > 65535 ? 0 : static_cast<uint16_t>(raw);

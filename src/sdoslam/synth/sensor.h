@@ -15,6 +15,10 @@ struct SensorOptions {
   // Axial depth noise σ(z) = a + b·(z − 0.4)², metres (Nguyen et al. 2012 for the Kinect).
   double depth_noise_a = 0.0012;
   double depth_noise_b = 0.0019;
+  // Systematic depth error growing towards the image corners, z · (1 + k·ρ²) with ρ the distance
+  // from the image centre over the half diagonal: an uncalibrated Kinect's depth distortion
+  // (Teichman et al. 2013; Herrera et al. 2012), which bends the map and makes loops drift.
+  double depth_distortion = 0.0;
   // Depth is missing on the far side of a jump larger than this fraction of the depth
   // (the Kinect's shadow band at silhouettes).
   double silhouette_jump = 0.05;

@@ -35,6 +35,11 @@ SequenceSummary WriteSequence(const SynthOptions& options, const std::filesystem
   const double duration = (options.frames - 1) * dt;
   const Scenario scenario = MakeScenario(options.scenario, duration, options.motion);
 
+  // The scenario may ask for a less perfect sensor than the default (the long loop's depth
+  // distortion); the caller's choices (noise on or off, blur, exposure) still hold.
+  SensorOptions sensor = options.sensor;
+  sensor.depth_distortion = scenario.depth_distortion;
+
   SequenceWriter writer(out, overwrite, scenario.name);
   double render_seconds = 0;
 
@@ -44,7 +49,6 @@ SequenceSummary WriteSequence(const SynthOptions& options, const std::filesystem
     const auto render_start = std::chrono::steady_clock::now();
 
     RenderedView view = Render(scenario.scene, t, T_world_camera, camera);
-    const SensorOptions& sensor = options.sensor;
     if (sensor.enabled && sensor.motion_blur_samples > 1) {
       cv::Mat sum = cv::Mat::zeros(view.colour.size(), CV_32FC3);
       for (int s = 0; s < sensor.motion_blur_samples; ++s) {
@@ -73,9 +77,10 @@ SequenceSummary WriteSequence(const SynthOptions& options, const std::filesystem
        << "description" << YAML::Value << scenario.description << YAML::Key << "camera_motion"
        << YAML::Value << ToString(scenario.motion) << YAML::Key << "frames" << YAML::Value
        << options.frames << YAML::Key << "seed" << YAML::Value << options.seed << YAML::Key
-       << "sensor_noise" << YAML::Value << options.sensor.enabled << YAML::Key
-       << "motion_blur_samples" << YAML::Value << options.sensor.motion_blur_samples << YAML::Key
-       << "exposure_changes" << YAML::Value << options.sensor.exposure_changes << YAML::EndMap;
+       << "sensor_noise" << YAML::Value << options.sensor.enabled << YAML::Key << "depth_distortion"
+       << YAML::Value << sensor.depth_distortion << YAML::Key << "motion_blur_samples"
+       << YAML::Value << options.sensor.motion_blur_samples << YAML::Key << "exposure_changes"
+       << YAML::Value << options.sensor.exposure_changes << YAML::EndMap;
   SequenceSummary summary = writer.Finish(camera_options, scenario.scene, info);
   summary.render_seconds = render_seconds;
   summary.total_seconds =

@@ -3,6 +3,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <set>
 
 #include "sdoslam/core/error.h"
 #include "sdoslam/io/trajectory.h"
@@ -121,6 +122,143 @@ TEST(Scenarios, LoopReturnsToItsStartAndUnknownNamesAreErrors) {
   for (const auto& name : ScenarioNames()) EXPECT_NO_THROW(MakeScenario(name, 5.0)) << name;
 }
 
+// The synthetic camera at a quarter of the resolution: enough to see what is in view, quickly.
+Camera SmallCamera() {
+  CameraOptions o = SyntheticCamera();
+  o.width /= 4;
+  o.height /= 4;
+  o.fx /= 4;
+  o.fy /= 4;
+  o.cx /= 4;
+  o.cy /= 4;
+  return Camera(o);
+}
+
+// The fraction of the static pixels seen from `a` that `b` sees too (in its image, not hidden).
+double SharedView(const Scene& scene, const Eigen::Isometry3d& a, const Eigen::Isometry3d& b,
+                  const Camera& camera) {
+  const RenderedView view_a = Render(scene, 0.0, a, camera);
+  const RenderedView view_b = Render(scene, 0.0, b, camera);
+  const Eigen::Isometry3d T_b_a = b.inverse() * a;
+  int seen = 0, shared = 0;
+  for (int v = 0; v < view_a.depth.rows; ++v) {
+    for (int u = 0; u < view_a.depth.cols; ++u) {
+      const float z = view_a.depth.at<float>(v, u);
+      if (z <= 0 || view_a.instance.at<uint16_t>(v, u) != 0) continue;
+      ++seen;
+      const Eigen::Vector3d p = T_b_a * camera.Unproject({u, v}, z);
+      if (p.z() <= 0.1) continue;
+      const Eigen::Vector2d q = camera.Project(p);
+      const int ub = static_cast<int>(std::lround(q.x())),
+                vb = static_cast<int>(std::lround(q.y()));
+      if (ub < 0 || vb < 0 || ub >= view_b.depth.cols || vb >= view_b.depth.rows) continue;
+      shared += std::abs(view_b.depth.at<float>(vb, ub) - p.z()) < 0.03 * p.z();
+    }
+  }
+  return seen > 0 ? static_cast<double>(shared) / seen : 0.0;
+}
+
+TEST(Scenarios, LongLoopIsAClosedHandHeldWalkThatEndsSeeingItsStart) {
+  const double dt = 1.0 / 30.0;
+  const double duration = (kLongLoopFrames - 1) * dt;
+  auto pose = [&](int k) { return CameraPoseAt(CameraMotion::kLongLoop, k * dt, duration); };
+  auto angle = [](const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+    return Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle();
+  };
+  const Eigen::Isometry3d start = pose(0);
+
+  // One lap closes exactly, and the end walks the first stretch again with the same poses.
+  EXPECT_GE(LongLoopLength(), 8.0);
+  EXPECT_TRUE(LongLoopPoseAtArc(LongLoopLength()).isApprox(start, 1e-9));
+  EXPECT_TRUE(LongLoopPoseAtArc(LongLoopLength() + 0.3).isApprox(LongLoopPoseAtArc(0.3), 1e-9));
+  EXPECT_NEAR(LongLoopArcAt(duration, duration), LongLoopLength() + LongLoopRetrace(), 1e-9);
+
+  // A walk a hand can hold: at most 0.5 m/s and 60°/s, starting and ending at rest, and the
+  // camera never closer than 0.7 m to anything, so that depth is there all the time.
+  double walked = 0, fastest = 0, fastest_turn = 0;
+  for (int k = 0; k + 1 < kLongLoopFrames; ++k) {
+    const double step = (pose(k + 1).translation() - pose(k).translation()).norm();
+    walked += step;
+    fastest = std::max(fastest, step / dt);
+    fastest_turn = std::max(fastest_turn, angle(pose(k), pose(k + 1)) / dt);
+  }
+  EXPECT_NEAR(walked, LongLoopLength() + LongLoopRetrace(), 0.05);
+  EXPECT_LE(fastest, 0.5);
+  EXPECT_LE(fastest_turn * 180 / M_PI, 60.0);
+  EXPECT_LT((pose(1).translation() - start.translation()).norm() / dt, 0.01);
+  const int last = kLongLoopFrames - 1;
+  EXPECT_LT((pose(last).translation() - pose(last - 1).translation()).norm() / dt, 0.01);
+
+  const Camera camera = SmallCamera();
+  const Scenario scenario = MakeScenario("long_loop", duration);
+  for (int k = 0; k < kLongLoopFrames; k += 25) {
+    const RenderedView view = Render(scenario.scene, k * dt, pose(k), camera);
+    double nearest = 1e9;
+    for (int v = 0; v < view.depth.rows; ++v) {
+      for (int u = 0; u < view.depth.cols; ++u) {
+        const float z = view.depth.at<float>(v, u);
+        ASSERT_GT(z, 0.0f) << "frame " << k;  // inside the room: something in every direction
+        nearest = std::min(nearest, static_cast<double>(z));
+      }
+    }
+    EXPECT_GT(nearest, 0.7) << "frame " << k;
+  }
+
+  // The lap ends on the start pose within its last 3 s; from there to the end the camera stays
+  // near the start and sees most of what the first frame saw (for place recognition).
+  int back = -1;
+  for (int k = last - 90; k <= last; ++k) {
+    if ((pose(k).translation() - start.translation()).norm() < 0.01 &&
+        angle(pose(k), start) < 0.01) {
+      back = k;
+      break;
+    }
+  }
+  ASSERT_GE(back, 0) << "the lap does not end on the start pose in the last 3 s";
+  EXPECT_GE(last - back, 45);  // at least 1.5 s of the first stretch walked again
+  EXPECT_LT((pose(last).translation() - start.translation()).norm(), 0.5);
+  EXPECT_LT(angle(pose(last), start) * 180 / M_PI, 10.0);
+  EXPECT_GT(SharedView(scenario.scene, start, pose(back), camera), 0.98);
+  for (int k = back - 30; k <= last; k += 15) {
+    EXPECT_GT(SharedView(scenario.scene, start, pose(k), camera), 0.6) << "frame " << k;
+  }
+  // Halfway round, the camera looks at the other side of the room.
+  EXPECT_LT(SharedView(scenario.scene, start, pose(last / 2), camera), 0.05);
+}
+
+TEST(Scenarios, LongLoopPeopleWalkThroughTheViewButNotThroughTheStartView) {
+  const double dt = 1.0 / 30.0;
+  const double duration = (kLongLoopFrames - 1) * dt;
+  const Scenario scenario = MakeScenario("long_loop_people", duration);
+  EXPECT_EQ(scenario.motion, CameraMotion::kLongLoop);
+  ASSERT_GE(scenario.scene.objects.size(), 2u);
+  const Camera camera = SmallCamera();
+  std::set<uint16_t> seen;
+  int frames_with_people = 0, frames = 0;
+  double largest = 0;
+  for (int k = 0; k < kLongLoopFrames; k += 10) {
+    const RenderedView view =
+        Render(scenario.scene, k * dt, CameraPoseAt(scenario.motion, k * dt, duration), camera);
+    const double covered =
+        cv::countNonZero(view.instance) / static_cast<double>(view.instance.total());
+    ++frames;
+    frames_with_people += covered > 0;
+    largest = std::max(largest, covered);
+    for (int v = 0; v < view.instance.rows; ++v) {
+      for (int u = 0; u < view.instance.cols; ++u) {
+        if (view.instance.at<uint16_t>(v, u) != 0) seen.insert(view.instance.at<uint16_t>(v, u));
+      }
+    }
+    // The first and last 2.5 s, where a loop would be recognised, are free of people.
+    if (k * dt < 2.5 || k * dt > duration - 2.5) {
+      EXPECT_EQ(covered, 0.0) << "frame " << k;
+    }
+  }
+  EXPECT_EQ(seen.size(), scenario.scene.objects.size());  // every walker comes into view
+  EXPECT_GT(frames_with_people, frames / 5);
+  EXPECT_LT(largest, 0.6);  // never hides most of the room
+}
+
 TEST(Sensor, DepthNoiseFollowsTheModelAndSilhouettesLoseDepth) {
   const Camera camera(SyntheticCamera());
   const Scenario scenario = MakeScenario("walking_static", 10.0);
@@ -159,6 +297,31 @@ TEST(Sensor, DepthNoiseFollowsTheModelAndSilhouettesLoseDepth) {
   cv::Scalar mean, stddev;
   cv::meanStdDev(diff.reshape(1), mean, stddev);
   EXPECT_NEAR(stddev[0], 2.0, 0.3);
+}
+
+TEST(Sensor, DepthDistortionGrowsTowardsTheCorners) {
+  const Camera camera(SyntheticCamera());
+  const Scenario scenario = MakeScenario("static_room", 10.0);
+  const RenderedView view =
+      Render(scenario.scene, 1.0, CameraPoseAt(scenario.motion, 1.0, 10.0), camera);
+  SensorOptions options;
+  options.depth_noise_a = options.depth_noise_b = 0;
+  options.depth_distortion = 0.04;
+  const SensorFrame frame = Sense(view, camera.options(), options, 5, 0);
+  auto ratio = [&](int u, int v) {
+    return frame.depth.at<uint16_t>(v, u) / 5000.0 / view.depth.at<float>(v, u);
+  };
+  const int w = view.depth.cols, h = view.depth.rows;
+  EXPECT_NEAR(ratio(w / 2, h / 2), 1.0, 1e-3);
+  for (auto [u, v] : {std::pair{2, 2}, {w - 3, 2}, {2, h - 3}, {w - 3, h - 3}}) {
+    EXPECT_NEAR(ratio(u, v), 1.04, 2e-3) << u << " " << v;
+  }
+  EXPECT_NEAR(ratio(w / 2, 2), 1.0 + 0.04 * h * h / (w * w + h * h), 2e-3);
+  options.depth_distortion = 0;  // the default: exact depth
+  EXPECT_NEAR(Sense(view, camera.options(), options, 5, 0).depth.at<uint16_t>(2, 2) / 5000.0,
+              view.depth.at<float>(2, 2), 1e-3);
+  EXPECT_EQ(MakeScenario("long_loop", 10.0).depth_distortion, 0.04);
+  EXPECT_EQ(MakeScenario("loop", 10.0).depth_distortion, 0.0);
 }
 
 class SequenceTest : public ::testing::Test {
