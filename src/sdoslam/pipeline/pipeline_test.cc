@@ -254,6 +254,45 @@ INSTANTIATE_TEST_SUITE_P(Mapping, LongRun, ::testing::Values(true, false),
                            return info.param ? "Sequential" : "Threaded";
                          });
 
+// People walk through the long loop (synth long_loop_people: once around the room, then its
+// first metres again), and the front end runs (`sdo`). Without loop closing the two visits of
+// the start end 15 cm apart; with it the revisit is recognised on static points only (the
+// people's features carry dynamic labels and never vote) and the error is at least halved
+// (measured: 57 -> 19 mm).
+TEST(PipelineLoopClosing, PeopleWalkingThroughTheLoopDoNotStopItClosing) {
+  testing::TempDir dir;
+  synth::SynthOptions options;
+  options.scenario = "long_loop_people";
+  options.frames = synth::kLongLoopFrames;
+  synth::WriteSequence(options, dir / "seq");
+  RunOptions run = SyntheticRun(dir / "seq", dir / "with", RunMode::kSdo);
+  // The default detector (HOG), as a user runs it. (With the renderer's person boxes instead the
+  // front end leaves a different map: 31 mm with closing against 59 mm without, 0.52x.)
+  run.front_end = FrontEndOptions{};
+  const RunSummary with = RunOnDataset(run);
+  run.out = dir / "without";
+  run.slam.loop_closing.enabled = false;
+  const RunSummary without = RunOnDataset(run);
+  ASSERT_TRUE(with.evaluation && without.evaluation);
+  const double ate_with = with.evaluation->ate.translation.rmse;
+  const double ate_without = without.evaluation->ate.translation.rmse;
+  std::cout << "long loop with people, sdo: ATE without closing " << ate_without << ", with "
+            << ate_with << ", loops " << with.loops.size() << '\n';
+  EXPECT_EQ(with.tracked, static_cast<size_t>(synth::kLongLoopFrames));
+  EXPECT_TRUE(without.loops.empty());
+  EXPECT_GE(ate_without, 0.03);
+  ASSERT_EQ(with.loops.size(), 1u);
+  EXPECT_GE(with.loops[0].frame_index, static_cast<size_t>(synth::kLongLoopFrames) * 4 / 5);
+  EXPECT_LE(with.loops[0].loop_frame_index, static_cast<size_t>(synth::kLongLoopFrames) / 5);
+  EXPECT_LE(ate_with, 0.5 * ate_without);
+  // loops.csv holds it for the user.
+  const std::string log = testing::ReadText(dir / "with" / "loops.csv");
+  EXPECT_NE(log.find(std::to_string(with.loops[0].frame_index) + "," +
+                     std::to_string(with.loops[0].loop_frame_index) + ","),
+            std::string::npos)
+      << log;
+}
+
 TEST(Pipeline, SdoOnTheRealStaticDeskIsAsGoodAsConventional) {
   const auto data = testing::SharedDir() / "data" / "tum_fr2_desk_50";
   if (!std::filesystem::is_directory(data)) GTEST_SKIP() << data << " absent";

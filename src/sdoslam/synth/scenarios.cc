@@ -131,10 +131,11 @@ constexpr double kLongLoopRadiusX = 1.5, kLongLoopRadiusY = 1.2;
 constexpr double kLongLoopRetrace = 0.4;  // metres walked again after the lap: about 1.7 s
 constexpr double kLongLoopRamp = 1.5;     // seconds to start walking and to stop
 constexpr int kLongLoopSamples = 4096;
-// The long loop's depth is 4 % too far in the image corners (2 % halfway out): with the exact
-// depth of the default sensor, the lap's drift is 3–8 cm by chance of the noise (one seed in
-// three under 4 cm); an uncalibrated Kinect's distortion at 2–3 m is of this size, and being
-// systematic, it makes every lap drift (6–11 cm ATE over seeds 1–3, in both modes).
+// The long loop's depth is up to 4 % too far towards the image corners (exact at the centre), as
+// an uncalibrated Kinect's is at 2–3 m. With exact depth and only the default sensor's noise, how
+// far a lap drifts is left to chance (ATE 3.4 cm conventional, 5.6 sdo with the default seed;
+// 3.1–8.1 cm over three seeds on a walk 0.2 m longer). The distortion is systematic, so every
+// lap drifts: 3.7–14.5 cm over seeds 1–3 in both modes.
 constexpr double kLongLoopDepthDistortion = 0.04;
 
 Eigen::Vector2d LongLoopPoint(double u) {

@@ -78,9 +78,9 @@ SequenceSummary WriteSequence(const SynthOptions& options, const std::filesystem
        << YAML::Value << ToString(scenario.motion) << YAML::Key << "frames" << YAML::Value
        << options.frames << YAML::Key << "seed" << YAML::Value << options.seed << YAML::Key
        << "sensor_noise" << YAML::Value << options.sensor.enabled << YAML::Key << "depth_distortion"
-       << YAML::Value << sensor.depth_distortion << YAML::Key << "motion_blur_samples"
-       << YAML::Value << options.sensor.motion_blur_samples << YAML::Key << "exposure_changes"
-       << YAML::Value << options.sensor.exposure_changes << YAML::EndMap;
+       << YAML::Value << fmt::format("{}", sensor.depth_distortion) << YAML::Key
+       << "motion_blur_samples" << YAML::Value << options.sensor.motion_blur_samples << YAML::Key
+       << "exposure_changes" << YAML::Value << options.sensor.exposure_changes << YAML::EndMap;
   SequenceSummary summary = writer.Finish(camera_options, scenario.scene, info);
   summary.render_seconds = render_seconds;
   summary.total_seconds =
