@@ -440,14 +440,16 @@ void LoopCloser::GlobalBundleAdjustment(std::unique_lock<std::mutex>* lock,
     ba.pose_fixed.push_back(keyframes.empty());  // the first keyframe holds the gauge
     keyframes.push_back(kf.get());
   }
-  std::vector<MapPoint*> points;
+  // Points by id: threaded, local mapping may cull and free a point while the BA is solved
+  // without the lock (keyframes are never freed).
+  std::vector<uint64_t> points;
   for (const auto& [id, p] : map_->points()) {
     if (p->bad) continue;
     int observed = 0;
     for (const auto& [kf_id, obs] : p->observations) observed += pose_index.count(kf_id) > 0;
     if (observed < 2) continue;
     const int index = static_cast<int>(points.size());
-    points.push_back(p.get());
+    points.push_back(id);
     ba.points.push_back(p->position);
     for (const auto& [kf_id, obs] : p->observations) {
       const auto it = pose_index.find(kf_id);
@@ -481,9 +483,10 @@ void LoopCloser::GlobalBundleAdjustment(std::unique_lock<std::mutex>* lock,
   }
   std::set<uint64_t> adjusted;
   for (size_t i = 0; i < points.size(); ++i) {
-    if (points[i]->bad) continue;
-    points[i]->position = ba.points[i];
-    adjusted.insert(points[i]->id);
+    const auto it = map_->points().find(points[i]);
+    if (it == map_->points().end() || it->second->bad) continue;
+    it->second->position = ba.points[i];
+    adjusted.insert(points[i]);
   }
   for (const auto& [id, p] : map_->points()) {
     if (p->bad) continue;
