@@ -24,6 +24,27 @@ void LoopClosingOptions::Check() const {
   pose_graph.Check();
 }
 
+namespace {
+
+// The map points of the place a loop closes on: the keyframe's and its covisible neighbours',
+// each once, in the order met.
+std::vector<MapPoint*> LoopSidePoints(const KeyFrame* loop) {
+  std::vector<MapPoint*> points;
+  std::set<uint64_t> seen;
+  auto collect = [&](const KeyFrame* kf) {
+    for (MapPoint* p : kf->frame.map_points) {
+      if (p != nullptr && !p->bad && seen.insert(p->id).second) points.push_back(p);
+    }
+  };
+  collect(loop);
+  for (const KeyFrame* n : loop->best_covisible) {
+    if (!n->bad) collect(n);
+  }
+  return points;
+}
+
+}  // namespace
+
 LoopCloser::LoopCloser(Map* map, KeyFramePlaces* places, const LoopClosingOptions& options)
     : map_(map), places_(places), options_((options.Check(), options)) {}
 
@@ -223,17 +244,7 @@ bool LoopCloser::Verify(KeyFrame* keyframe, KeyFrame* candidate, Verified* verif
   verified->inliers = optimize(probe);
   if (verified->inliers < options_.min_inliers) return false;
 
-  std::vector<MapPoint*> loop_points;
-  std::set<uint64_t> seen;
-  auto collect = [&](const KeyFrame* kf) {
-    for (MapPoint* p : kf->frame.map_points) {
-      if (p != nullptr && !p->bad && seen.insert(p->id).second) loop_points.push_back(p);
-    }
-  };
-  collect(candidate);
-  for (const KeyFrame* n : candidate->best_covisible) {
-    if (!n->bad) collect(n);
-  }
+  const std::vector<MapPoint*> loop_points = LoopSidePoints(candidate);
   // A stamp space of its own (top bit set), apart from tracking's frame stamps.
   const uint64_t stamp = (uint64_t{1} << 63) | ++search_stamp_;
   for (MapPoint* p : probe.map_points) {
@@ -307,17 +318,7 @@ void LoopCloser::Correct(KeyFrame* keyframe, const Verified& verified, LoopRecor
       ++fused;
     }
   }
-  std::vector<MapPoint*> loop_points;
-  std::set<uint64_t> seen;
-  auto collect = [&](const KeyFrame* kf) {
-    for (MapPoint* p : kf->frame.map_points) {
-      if (p != nullptr && !p->bad && seen.insert(p->id).second) loop_points.push_back(p);
-    }
-  };
-  collect(loop);
-  for (const KeyFrame* n : loop->best_covisible) {
-    if (!n->bad) collect(n);
-  }
+  const std::vector<MapPoint*> loop_points = LoopSidePoints(loop);
   std::map<uint64_t, std::set<uint64_t>> linked_before;
   for (KeyFrame* kf : connected) {
     if (kf->bad) continue;
