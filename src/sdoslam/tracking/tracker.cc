@@ -5,43 +5,11 @@
 #include <opencv2/calib3d.hpp>
 #include <set>
 
-#include "sdoslam/core/error.h"
 #include "sdoslam/optim/optimizer.h"
 #include "sdoslam/tracking/matcher.h"
 #include "sdoslam/tracking/static_motion.h"
 
 namespace sdoslam {
-
-const char* ToString(TrackingState state) {
-  switch (state) {
-    case TrackingState::kNotInitialized:
-      return "not_initialized";
-    case TrackingState::kOk:
-      return "ok";
-    case TrackingState::kLost:
-      return "lost";
-  }
-  return "?";
-}
-
-void TrackerOptions::Check() const {
-  if (min_initial_depth_features < 10)
-    throw Error("tracking.min_initial_depth_features must be >= 10");
-  if (min_inliers < 6) throw Error("tracking.min_inliers must be >= 6");
-  if (max_frames_between_keyframes < 1)
-    throw Error("tracking.max_frames_between_keyframes must be >= 1");
-  if (!(reference_ratio > 0 && reference_ratio < 1))
-    throw Error("tracking.reference_ratio must be in (0, 1)");
-  if (!(projection_radius > 0)) throw Error("tracking.projection_radius must be positive");
-  if (relocalization_candidates < 0) throw Error("tracking.relocalization_candidates must be >= 0");
-  if (relocalization_place_candidates < 0)
-    throw Error("tracking.relocalization_place_candidates must be >= 0");
-  if (relocalization_prior_frames < 0)
-    throw Error("tracking.relocalization_prior_frames must be >= 0");
-  if (!(relocalization_radius_factor >= 1))
-    throw Error("tracking.relocalization_radius_factor must be >= 1");
-  consistency.Check();
-}
 
 Tracker::Tracker(Map* map, const TrackerOptions& options, KeyFramePlaces* places)
     : map_(map), places_(places), options_(options) {

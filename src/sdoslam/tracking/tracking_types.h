@@ -1,0 +1,98 @@
+#pragma once
+
+#include <Eigen/Geometry>
+#include <cstddef>
+#include <cstdint>
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "sdoslam/tracking/scene_flow.h"
+
+namespace sdoslam {
+
+// The Tracker's options, inputs and per-frame outcome, shared by the parts of tracking
+// (tracker.h lists the parts).
+
+enum class TrackingState { kNotInitialized, kOk, kLost };
+const char* ToString(TrackingState state);
+
+struct TrackerOptions {
+  int min_initial_depth_features = 500;  // a first frame needs this many features with depth
+  int min_inliers = 30;                  // to call a frame tracked after the local map
+  int max_frames_between_keyframes = 30;
+  double reference_ratio = 0.75;    // keyframe when tracking less than this of the reference
+  int min_close_points = 100;       // keyframe when fewer close points are tracked...
+  int close_points_to_create = 70;  // ...and at least this many new ones could be made
+  double projection_radius = 15.0;  // px at level 0, motion-model search
+  // Lost: the reference keyframe, this many of its best neighbours and this many of the last
+  // keyframes are tried, each by descriptor matching and PnP in RANSAC.
+  int relocalization_candidates = 5;
+  // ... then this many keyframes from anywhere in the map whose bags of words look most like
+  // the lost frame (place recognition; needs the Tracker's `places`).
+  int relocalization_place_candidates = 5;
+  // Lost for fewer than relocalization_prior_frames frames: first the map is searched by
+  // projection around where the camera should be (the last pose carried on at the last
+  // velocity, then the last pose itself), in windows relocalization_radius_factor times the
+  // local-map search's, and the pose is kept when min_inliers remain after optimisation. A
+  // person walking past close fills the view for a few frames while the camera hardly moves;
+  // when the room comes back, the part in view is often one that only keyframes outside the
+  // reference's neighbourhood saw, and descriptor matching against those candidates found 0-2
+  // matches (synthetic loop: frames with 40-48 % of the room in view were lost in every mode).
+  // 0: off.
+  int relocalization_prior_frames = 30;
+  double relocalization_radius_factor = 4.0;
+  SceneFlowOptions consistency;  // the scene-flow consistency check and map hygiene
+  void Check() const;
+};
+
+// Label the consistency check gives the features it judges dynamic (the front end's labels are
+// 1 and 2).
+inline constexpr uint8_t kSceneFlowLabel = 3;
+
+// What the consistency check needs besides the frame's features: this frame's images and the
+// front end's segmentation.
+struct ConsistencyInput {
+  cv::Mat gray;      // CV_8U, image size
+  cv::Mat depth;     // CV_32F metres, registered to the colour image (0 = none)
+  cv::Mat segments;  // CV_32S segment per pixel (−1: none) at any size of the image's aspect
+  std::vector<uint8_t> locked_segments;  // per segment: dynamic whatever its scene flow
+};
+
+// Per-frame outcome, for the run log.
+struct TrackingResult {
+  size_t index = 0;
+  double timestamp = 0;
+  TrackingState state = TrackingState::kNotInitialized;
+  int features = 0;
+  int features_with_depth = 0;
+  int matches = 0;  // map points matched before the final pose optimisation
+  int inliers = 0;  // matched map points after it
+  bool keyframe = false;
+  bool relocalized = false;                          // tracked again after lost frames
+  size_t keyframes_alive = 0, map_points_alive = 0;  // the map's size after this frame
+  Eigen::Isometry3d T_camera_world = Eigen::Isometry3d::Identity();
+  // Every feature's detected position, its front-end label (0 = static) and whether it ended
+  // matched to a map point as an inlier: for overlays and feature-level evaluation.
+  std::vector<cv::Point2f> feature_points;
+  std::vector<uint8_t> feature_labels;
+  std::vector<uint8_t> feature_tracked;
+  // Consistency check: classification rounds run (0: not run), whether the static set reached a
+  // fixed point, whether its result was dropped (too few inliers left: the rough pose stays),
+  // features whose scene flow was measured, features it judged dynamic, and landmarks culled
+  // from the map as inconsistent.
+  int check_iterations = 0;
+  bool check_converged = false;
+  bool check_reverted = false;
+  int check_measured = 0;
+  int check_dynamic = 0;
+  int culled_points = 0;
+  // Static motion (static_motion.h): grid samples the rough pose explains, samples the chosen
+  // pose explains, and whether the widest motion replaced the rough pose.
+  int check_rough_samples = 0;
+  int check_static_samples = 0;
+  bool check_replaced = false;
+  // Segments (ids of ConsistencyInput::segments) the check turned dynamic as a whole.
+  std::vector<int> check_segments;
+};
+
+}  // namespace sdoslam
