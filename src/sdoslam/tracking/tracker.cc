@@ -19,11 +19,10 @@ Tracker::Tracker(Map* map, const TrackerOptions& options, KeyFramePlaces* places
 TrackingResult Tracker::Track(Frame frame, KeyFrame** new_keyframe, bool mapping_idle,
                               bool mapping_accepts, const ConsistencyInput* consistency,
                               std::unique_lock<std::mutex>* map_lock) {
-  map_lock_ = map_lock;
-  lock_wait_ms_ = 0;
+  map_lock_.Begin(map_lock);
   TrackingResult result =
       TrackFrame(std::move(frame), new_keyframe, mapping_idle, mapping_accepts, consistency);
-  map_lock_ = nullptr;
+  map_lock_.End();
   // Nothing of this frame's matching is held past this point (see Map::CollectGarbage).
   local_points_.clear();
   map_->FrameFinished();
@@ -210,7 +209,7 @@ int Tracker::OptimizeAndCount(Frame& frame) {
     observations.push_back(frame.Observation(static_cast<int>(i)));
   }
   if (index.size() < 10) return 0;
-  const PoseOptimizationResult r = WithoutMapLock([&] {
+  const PoseOptimizationResult r = map_lock_.WithoutMapLock([&] {
     return OptimizePose(frame.geometry->intrinsics, frame.T_camera_world, points, observations);
   });
   frame.T_camera_world = r.T_camera_world;
@@ -538,7 +537,7 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
   }
   std::vector<cv::Point2f> past_points;
   std::vector<uint8_t> found;
-  WithoutMapLock([&] {
+  map_lock_.WithoutMapLock([&] {
     TrackPointsBack(o, input.gray, past->gray, tracked_points, &past_points, &found, &guesses);
   });
 
@@ -599,7 +598,7 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
     }
     std::vector<cv::Point2f> near_points;
     std::vector<uint8_t> near_found;
-    WithoutMapLock([&] {
+    map_lock_.WithoutMapLock([&] {
       TrackPointsBack(o, input.gray, near_past->gray, retry_points, &near_points, &near_found,
                       &retry_guesses);
     });
@@ -629,7 +628,7 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
   if (o.static_motion.enabled) {
     const StaticMotionOptions& so = o.static_motion;
     const std::vector<cv::Point2f> samples =
-        WithoutMapLock([&] { return GridCorners(so, input.gray, input.depth); });
+        map_lock_.WithoutMapLock([&] { return GridCorners(so, input.gray, input.depth); });
     const std::vector<cv::Point2f> samples_undistorted = camera.UndistortPoints(samples);
     std::vector<cv::Point2f> sample_guesses;
     for (size_t s = 0; s < samples.size(); ++s) {
@@ -640,7 +639,7 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
     }
     std::vector<cv::Point2f> sample_past;
     std::vector<uint8_t> sample_found;
-    WithoutMapLock([&] {
+    map_lock_.WithoutMapLock([&] {
       TrackPointsBack(o, input.gray, past->gray, samples, &sample_past, &sample_found,
                       &sample_guesses);
     });
@@ -672,7 +671,7 @@ std::vector<MapPoint*> Tracker::CheckSceneFlow(Frame& frame, const ConsistencyIn
     }
     sample_segment =
         SegmentsAt(input.segments, cv::Size(camera.width(), camera.height()), sample_points);
-    const StaticMotionResult widest = WithoutMapLock([&] {
+    const StaticMotionResult widest = map_lock_.WithoutMapLock([&] {
       return FindStaticMotion(so, frame.geometry->intrinsics, correspondences,
                               frame.T_camera_world);
     });

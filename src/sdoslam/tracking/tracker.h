@@ -1,6 +1,5 @@
 #pragma once
 
-#include <chrono>
 #include <deque>
 #include <memory>
 #include <mutex>
@@ -8,6 +7,7 @@
 
 #include "sdoslam/map/map.h"
 #include "sdoslam/place/keyframe_places.h"
+#include "sdoslam/tracking/map_lock.h"
 #include "sdoslam/tracking/scene_flow.h"
 #include "sdoslam/tracking/tracking_types.h"
 
@@ -47,29 +47,9 @@ class Tracker {
   const std::vector<TrajectoryEntry>& trajectory() const { return trajectory_; }
   TrackingState state() const { return state_; }
   // Of the last Track: milliseconds spent taking the map lock back (see Track's map_lock).
-  double last_lock_wait_ms() const { return lock_wait_ms_; }
+  double last_lock_wait_ms() const { return map_lock_.wait_ms(); }
 
  private:
-  // Runs `work` without the map lock when Track was given one (see Track); `work` must touch
-  // nothing of the map.
-  template <typename Work>
-  auto WithoutMapLock(Work&& work) {
-    if (map_lock_ == nullptr || !map_lock_->owns_lock()) return work();
-    struct Relock {
-      std::unique_lock<std::mutex>* lock;
-      double* wait_ms;
-      ~Relock() {
-        const auto start = std::chrono::steady_clock::now();
-        lock->lock();
-        *wait_ms +=
-            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
-                .count();
-      }
-    };
-    map_lock_->unlock();
-    Relock relock{map_lock_, &lock_wait_ms_};
-    return work();
-  }
   TrackingResult TrackFrame(Frame frame, KeyFrame** new_keyframe, bool mapping_idle,
                             bool mapping_accepts, const ConsistencyInput* consistency);
   bool Initialize(Frame& frame);
@@ -98,8 +78,7 @@ class Tracker {
 
   Map* map_;
   KeyFramePlaces* places_;
-  std::unique_lock<std::mutex>* map_lock_ = nullptr;  // during Track, when given
-  double lock_wait_ms_ = 0;
+  MapLockReleaser map_lock_;  // during Track, the lock it was given
   TrackerOptions options_;
   TrackingState state_ = TrackingState::kNotInitialized;
   std::unique_ptr<Frame> last_frame_;
