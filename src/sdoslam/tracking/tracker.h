@@ -1,6 +1,5 @@
 #pragma once
 
-#include <deque>
 #include <memory>
 #include <mutex>
 #include <vector>
@@ -8,7 +7,7 @@
 #include "sdoslam/map/map.h"
 #include "sdoslam/place/keyframe_places.h"
 #include "sdoslam/tracking/map_lock.h"
-#include "sdoslam/tracking/scene_flow.h"
+#include "sdoslam/tracking/scene_flow_checker.h"
 #include "sdoslam/tracking/tracking_types.h"
 
 namespace sdoslam {
@@ -61,25 +60,20 @@ class Tracker {
   // first try, and a tracked camera's last before it is called lost.
   bool RelocalizeNearPrediction(Frame& frame);
   bool TrackLocalMap(Frame& frame, TrackingResult* result);
+  // The motion-only pose optimisation every step ends with (see RefinePose): the pose from the
+  // frame's matches, outliers unmatched; returns the inliers.
   int OptimizeAndCount(Frame& frame);
+  // OptimizeAndCount, for the parts.
+  RefinePose Refiner();
   void MakeTemporaryPoints();
   bool NeedKeyFrame(const Frame& frame, int inliers, bool mapping_idle) const;
   KeyFrame* CreateKeyFrame(Frame& frame);
-  // The paper's iterative check (§III-E). Returns the map points of the features it judged
-  // dynamic.
-  std::vector<MapPoint*> CheckSceneFlow(Frame& frame, const ConsistencyInput& input,
-                                        TrackingResult* result);
-  // Keeps this frame's images and pose for the scene flow of the frames to come.
-  void RememberFrame(size_t index, bool tracked, const Eigen::Isometry3d& T_camera_world,
-                     const ConsistencyInput* consistency);
-  // Map hygiene: counts the inconsistency of local landmarks and culls the repeat offenders.
-  void CheckLandmarks(const Frame& frame, const ConsistencyInput& input,
-                      const std::vector<MapPoint*>& judged_dynamic, TrackingResult* result);
 
   Map* map_;
   KeyFramePlaces* places_;
   MapLockReleaser map_lock_;  // during Track, the lock it was given
   TrackerOptions options_;
+  SceneFlowChecker checker_;  // the consistency check; keeps the last frames' images and poses
   TrackingState state_ = TrackingState::kNotInitialized;
   std::unique_ptr<Frame> last_frame_;
   KeyFrame* reference_ = nullptr;
@@ -93,14 +87,6 @@ class Tracker {
   uint64_t frame_stamp_ = 0;
   uint64_t correction_epoch_ = 0;        // of the map's last loop correction carried over
   std::vector<MapPoint*> local_points_;  // of the last TrackLocalMap
-  // The last frames' images and poses, for scene flow.
-  struct PastFrame {
-    size_t index;
-    cv::Mat gray, depth;
-    Eigen::Isometry3d T_camera_world;
-    bool tracked;
-  };
-  std::deque<PastFrame> history_;
 };
 
 }  // namespace sdoslam

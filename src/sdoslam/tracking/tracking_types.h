@@ -3,12 +3,15 @@
 #include <Eigen/Geometry>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <opencv2/core.hpp>
 #include <vector>
 
 #include "sdoslam/tracking/scene_flow.h"
 
 namespace sdoslam {
+
+class Frame;
 
 // The Tracker's options, inputs and per-frame outcome, shared by the parts of tracking
 // (tracker.h lists the parts).
@@ -94,5 +97,11 @@ struct TrackingResult {
   // Segments (ids of ConsistencyInput::segments) the check turned dynamic as a whole.
   std::vector<int> check_segments;
 };
+
+// The Tracker's motion-only pose optimisation (Tracker::OptimizeAndCount), for the parts that
+// end with one: re-estimates frame.T_camera_world from the frame's matched map points, marks
+// each matched feature an outlier or not and unmatches the outliers; returns the inliers (0,
+// pose unchanged, below 10 matches). Its solve runs without the map lock.
+using RefinePose = std::function<int(Frame& frame)>;
 
 }  // namespace sdoslam

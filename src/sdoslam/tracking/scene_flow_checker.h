@@ -1,0 +1,71 @@
+#pragma once
+
+#include <cstddef>
+#include <deque>
+#include <vector>
+
+#include "sdoslam/map/map.h"
+#include "sdoslam/tracking/map_lock.h"
+#include "sdoslam/tracking/scene_flow.h"
+#include "sdoslam/tracking/tracking_types.h"
+
+namespace sdoslam {
+
+// The scene-flow consistency check of the paper (§III-E) on tracked frames, and the map hygiene
+// that follows it. Remembers the last frames' images and poses (the Tracker calls RememberFrame
+// after each frame); a frame's features are followed back into the earliest of them by
+// Lucas–Kanade, both ends become 3-D points from depth, and features whose scene flow exceeds
+// what noise explains (scene_flow.h), or that the static world's motion does not explain
+// (static_motion.h), are dynamic, and so are the segments mostly made of them. The pose is
+// re-estimated without them until the dynamic set stops growing.
+class SceneFlowChecker {
+ public:
+  // `map`: for culling the landmarks judged inconsistent too often (CheckLandmarks).
+  SceneFlowChecker(Map* map, const SceneFlowOptions& options);
+
+  // Keeps frame `index`'s images (cloned: the caller may reuse its buffers) and pose, and
+  // whether it was tracked, for the scene flow of the frames to come; the last frame_gap frames
+  // are kept.
+  void RememberFrame(size_t index, bool tracked, const Eigen::Isometry3d& T_camera_world,
+                     const ConsistencyInput& input);
+  // Loop closing moved the map by `change` (each pose becomes T_camera_world * change): the
+  // remembered poses move with it, or the check would see the whole room move.
+  void CorrectPoses(const Eigen::Isometry3d& change);
+  size_t remembered() const { return history_.size(); }
+
+  // The paper's iterative check (§III-E) on `frame`, tracked at a rough pose with its matches
+  // (frame.map_points, frame.outlier), against the earliest remembered tracked frame before it
+  // (nothing is done without one). Features judged dynamic are labelled kSceneFlowLabel and
+  // unmatched, and the pose is re-estimated by `refine_pose` without them. When too few inliers
+  // would be left, or the check would overturn the map's established landmarks, the frame keeps
+  // its matches and tracking's pose (result->check_reverted). Fills the check's fields and
+  // `inliers` of `result`. Returns the map points of the features it judged dynamic.
+  // `map_lock`: Lucas–Kanade, the grid corners and the static world's motion run without it.
+  std::vector<MapPoint*> CheckSceneFlow(Frame& frame, const ConsistencyInput& input,
+                                        const RefinePose& refine_pose, MapLockReleaser& map_lock,
+                                        TrackingResult* result);
+
+  // Map hygiene after CheckSceneFlow: counts the inconsistency of landmarks (MapPoint::
+  // inconsistent) and culls those judged inconsistent cull_after times in a row
+  // (result->culled_points). Landmarks `judged_dynamic` are inconsistent; those matched as
+  // inliers are consistent; of the other `local_points` in view, those the depth image sees
+  // through (a surface behind them, nothing in front) are inconsistent.
+  void CheckLandmarks(const Frame& frame, const ConsistencyInput& input,
+                      const std::vector<MapPoint*>& judged_dynamic,
+                      const std::vector<MapPoint*>& local_points, TrackingResult* result);
+
+ private:
+  // A remembered frame.
+  struct PastFrame {
+    size_t index;
+    cv::Mat gray, depth;
+    Eigen::Isometry3d T_camera_world;
+    bool tracked;
+  };
+
+  Map* map_;
+  SceneFlowOptions options_;
+  std::deque<PastFrame> history_;  // oldest first
+};
+
+}  // namespace sdoslam
