@@ -7,6 +7,7 @@
 #include "sdoslam/map/map.h"
 #include "sdoslam/place/keyframe_places.h"
 #include "sdoslam/tracking/map_lock.h"
+#include "sdoslam/tracking/relocalizer.h"
 #include "sdoslam/tracking/scene_flow_checker.h"
 #include "sdoslam/tracking/tracking_types.h"
 
@@ -54,26 +55,23 @@ class Tracker {
   bool Initialize(Frame& frame);
   bool TrackWithMotionModel(Frame& frame);
   bool TrackReferenceKeyFrame(Frame& frame);
-  // After tracking was lost: the pose from descriptor matches with nearby keyframes.
-  bool Relocalize(Frame& frame);
-  // A projection search of the whole map around predicted poses, in wide windows: Relocalize's
-  // first try, and a tracked camera's last before it is called lost.
-  bool RelocalizeNearPrediction(Frame& frame);
   bool TrackLocalMap(Frame& frame, TrackingResult* result);
   // The motion-only pose optimisation every step ends with (see RefinePose): the pose from the
   // frame's matches, outliers unmatched; returns the inliers.
   int OptimizeAndCount(Frame& frame);
   // OptimizeAndCount, for the parts.
   RefinePose Refiner();
+  // What the relocalizer needs of the last tracked frame.
+  Relocalizer::Prior RelocalizationPrior() const;
   void MakeTemporaryPoints();
   bool NeedKeyFrame(const Frame& frame, int inliers, bool mapping_idle) const;
   KeyFrame* CreateKeyFrame(Frame& frame);
 
   Map* map_;
-  KeyFramePlaces* places_;
   MapLockReleaser map_lock_;  // during Track, the lock it was given
   TrackerOptions options_;
   SceneFlowChecker checker_;  // the consistency check; keeps the last frames' images and poses
+  Relocalizer relocalizer_;
   TrackingState state_ = TrackingState::kNotInitialized;
   std::unique_ptr<Frame> last_frame_;
   KeyFrame* reference_ = nullptr;
