@@ -5,6 +5,7 @@
 #include <set>
 
 #include "sdoslam/optim/optimizer.h"
+#include "sdoslam/tracking/initializer.h"
 #include "sdoslam/tracking/matcher.h"
 
 namespace sdoslam {
@@ -58,7 +59,10 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
   for (const cv::KeyPoint& k : frame.keypoints) result.feature_points.push_back(k.pt);
 
   if (state_ == TrackingState::kNotInitialized) {
-    if (Initialize(frame)) {
+    KeyFrame* first = InitializeMap(map_, options_, frame);
+    if (first != nullptr) {
+      reference_ = last_keyframe_ = first;
+      last_keyframe_frame_ = frame.index;
       state_ = TrackingState::kOk;
       result.keyframe = true;
       *new_keyframe = last_keyframe_;
@@ -150,24 +154,6 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
   if (consistency != nullptr)
     checker_.RememberFrame(frame.index, ok, frame.T_camera_world, *consistency);
   return result;
-}
-
-bool Tracker::Initialize(Frame& frame) {
-  int with_depth = 0;
-  for (size_t i = 0; i < frame.size(); ++i) with_depth += frame.HasDepth(static_cast<int>(i));
-  if (with_depth < options_.min_initial_depth_features) return false;
-  frame.T_camera_world = Eigen::Isometry3d::Identity();  // the first camera defines the world
-  KeyFrame* kf = map_->AddKeyFrame(frame);
-  for (size_t i = 0; i < kf->frame.size(); ++i) {
-    if (!kf->frame.HasDepth(static_cast<int>(i)) || !kf->frame.IsStatic(static_cast<int>(i)))
-      continue;
-    MapPoint* p = map_->AddMapPoint(kf->frame.UnprojectWorld(static_cast<int>(i)), kf);
-    map_->AddObservation(p, kf, static_cast<int>(i));
-    p->UpdateFromObservations();
-  }
-  reference_ = last_keyframe_ = kf;
-  last_keyframe_frame_ = frame.index;
-  return true;
 }
 
 void Tracker::MakeTemporaryPoints() {

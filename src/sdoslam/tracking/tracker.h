@@ -52,7 +52,6 @@ class Tracker {
  private:
   TrackingResult TrackFrame(Frame frame, KeyFrame** new_keyframe, bool mapping_idle,
                             bool mapping_accepts, const ConsistencyInput* consistency);
-  bool Initialize(Frame& frame);
   bool TrackWithMotionModel(Frame& frame);
   bool TrackReferenceKeyFrame(Frame& frame);
   bool TrackLocalMap(Frame& frame, TrackingResult* result);
@@ -76,7 +75,7 @@ class Tracker {
   std::unique_ptr<Frame> last_frame_;
   KeyFrame* reference_ = nullptr;
   KeyFrame* last_keyframe_ = nullptr;
-  size_t last_keyframe_frame_ = 0;
+  size_t last_keyframe_frame_ = 0;  // frame index of the last keyframe
   bool has_velocity_ = false;
   int frames_lost_ = 0;  // frames since the last tracked one
   Eigen::Isometry3d velocity_ = Eigen::Isometry3d::Identity();

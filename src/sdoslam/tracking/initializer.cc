@@ -1,0 +1,21 @@
+#include "sdoslam/tracking/initializer.h"
+
+namespace sdoslam {
+
+KeyFrame* InitializeMap(Map* map, const TrackerOptions& options, Frame& frame) {
+  int with_depth = 0;
+  for (size_t i = 0; i < frame.size(); ++i) with_depth += frame.HasDepth(static_cast<int>(i));
+  if (with_depth < options.min_initial_depth_features) return nullptr;
+  frame.T_camera_world = Eigen::Isometry3d::Identity();  // the first camera defines the world
+  KeyFrame* kf = map->AddKeyFrame(frame);
+  for (size_t i = 0; i < kf->frame.size(); ++i) {
+    if (!kf->frame.HasDepth(static_cast<int>(i)) || !kf->frame.IsStatic(static_cast<int>(i)))
+      continue;
+    MapPoint* p = map->AddMapPoint(kf->frame.UnprojectWorld(static_cast<int>(i)), kf);
+    map->AddObservation(p, kf, static_cast<int>(i));
+    p->UpdateFromObservations();
+  }
+  return kf;
+}
+
+}  // namespace sdoslam
