@@ -6,6 +6,7 @@
 
 #include "sdoslam/optim/optimizer.h"
 #include "sdoslam/tracking/initializer.h"
+#include "sdoslam/tracking/keyframe_inserter.h"
 #include "sdoslam/tracking/matcher.h"
 
 namespace sdoslam {
@@ -61,17 +62,17 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
   if (state_ == TrackingState::kNotInitialized) {
     KeyFrame* first = InitializeMap(map_, options_, frame);
     if (first != nullptr) {
-      reference_ = last_keyframe_ = first;
+      reference_ = first;
       last_keyframe_frame_ = frame.index;
       state_ = TrackingState::kOk;
       result.keyframe = true;
-      *new_keyframe = last_keyframe_;
-      result.inliers = last_keyframe_->TrackedPoints(1);
+      *new_keyframe = first;
+      result.inliers = first->TrackedPoints(1);
     }
     result.state = state_;
     trajectory_.push_back({frame.timestamp, state_ == TrackingState::kOk ? reference_ : nullptr,
                            Eigen::Isometry3d::Identity()});
-    if (state_ == TrackingState::kOk) last_frame_ = std::make_unique<Frame>(last_keyframe_->frame);
+    if (state_ == TrackingState::kOk) last_frame_ = std::make_unique<Frame>(first->frame);
     if (consistency != nullptr) {
       checker_.RememberFrame(frame.index, state_ == TrackingState::kOk,
                              Eigen::Isometry3d::Identity(), *consistency);
@@ -139,8 +140,14 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
       has_velocity_ = true;
     }
     frames_lost_ = 0;
-    if (mapping_accepts && NeedKeyFrame(frame, result.inliers, mapping_idle)) {
-      *new_keyframe = CreateKeyFrame(frame);
+    if (mapping_accepts && NeedKeyFrame(options_, frame,
+                                        {.inliers = result.inliers,
+                                         .reference_matches = ReferenceMatches(*map_, *reference_),
+                                         .last_keyframe_frame = last_keyframe_frame_,
+                                         .mapping_idle = mapping_idle})) {
+      *new_keyframe = CreateKeyFrame(map_, options_, frame);
+      reference_ = *new_keyframe;
+      last_keyframe_frame_ = frame.index;
       result.keyframe = true;
     }
     trajectory_.push_back(
@@ -297,56 +304,6 @@ bool Tracker::TrackLocalMap(Frame& frame, TrackingResult* result) {
   }
   result->inliers = inliers;
   return inliers >= options_.min_inliers;
-}
-
-bool Tracker::NeedKeyFrame(const Frame& frame, int inliers, bool mapping_idle) const {
-  const size_t keyframes = map_->GoodKeyFrames();
-  const int min_observations = keyframes == 1 ? 1 : keyframes == 2 ? 2 : 3;
-  const int reference_matches = reference_->TrackedPoints(min_observations);
-  int tracked_close = 0, untracked_close = 0;
-  for (size_t i = 0; i < frame.size(); ++i) {
-    if (!frame.HasDepth(static_cast<int>(i)) || !frame.IsStatic(static_cast<int>(i)) ||
-        frame.depth[i] > frame.geometry->close_depth)
-      continue;
-    if (frame.map_points[i] != nullptr && !frame.outlier[i]) {
-      ++tracked_close;
-    } else {
-      ++untracked_close;
-    }
-  }
-  const bool need_close = tracked_close < options_.min_close_points &&
-                          untracked_close > options_.close_points_to_create;
-  const bool long_since =
-      frame.index >=
-      last_keyframe_frame_ + static_cast<size_t>(options_.max_frames_between_keyframes);
-  const bool weak = inliers < 0.25 * reference_matches || need_close;
-  const bool c2 =
-      (inliers < options_.reference_ratio * reference_matches || need_close) && inliers > 15;
-  return (long_since || mapping_idle || weak) && c2;
-}
-
-KeyFrame* Tracker::CreateKeyFrame(Frame& frame) {
-  KeyFrame* kf = map_->AddKeyFrame(frame);
-  // New close points from depth, nearest first; at least min_close_points of them.
-  std::vector<std::pair<float, int>> by_depth;
-  for (size_t i = 0; i < kf->frame.size(); ++i) {
-    if (kf->frame.HasDepth(static_cast<int>(i)) && kf->frame.IsStatic(static_cast<int>(i)))
-      by_depth.emplace_back(kf->frame.depth[i], static_cast<int>(i));
-  }
-  std::sort(by_depth.begin(), by_depth.end());
-  int count = 0;
-  for (const auto& [depth, i] : by_depth) {
-    MapPoint* existing = kf->frame.map_points[static_cast<size_t>(i)];
-    if (existing == nullptr || existing->bad) {
-      MapPoint* p = map_->AddMapPoint(kf->frame.UnprojectWorld(i), kf);
-      map_->AddObservation(p, kf, i);
-      p->UpdateFromObservations();
-    }
-    if (++count > options_.min_close_points && depth > kf->frame.geometry->close_depth) break;
-  }
-  reference_ = last_keyframe_ = kf;
-  last_keyframe_frame_ = frame.index;
-  return kf;
 }
 
 }  // namespace sdoslam

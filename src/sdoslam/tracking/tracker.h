@@ -63,8 +63,6 @@ class Tracker {
   // What the relocalizer needs of the last tracked frame.
   Relocalizer::Prior RelocalizationPrior() const;
   void MakeTemporaryPoints();
-  bool NeedKeyFrame(const Frame& frame, int inliers, bool mapping_idle) const;
-  KeyFrame* CreateKeyFrame(Frame& frame);
 
   Map* map_;
   MapLockReleaser map_lock_;  // during Track, the lock it was given
@@ -74,7 +72,6 @@ class Tracker {
   TrackingState state_ = TrackingState::kNotInitialized;
   std::unique_ptr<Frame> last_frame_;
   KeyFrame* reference_ = nullptr;
-  KeyFrame* last_keyframe_ = nullptr;
   size_t last_keyframe_frame_ = 0;  // frame index of the last keyframe
   bool has_velocity_ = false;
   int frames_lost_ = 0;  // frames since the last tracked one

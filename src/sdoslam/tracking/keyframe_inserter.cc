@@ -1,0 +1,63 @@
+#include "sdoslam/tracking/keyframe_inserter.h"
+
+#include <algorithm>
+#include <utility>
+#include <vector>
+
+namespace sdoslam {
+
+int ReferenceMatches(const Map& map, const KeyFrame& reference) {
+  const size_t keyframes = map.GoodKeyFrames();
+  const int min_observations = keyframes == 1 ? 1 : keyframes == 2 ? 2 : 3;
+  return reference.TrackedPoints(min_observations);
+}
+
+bool NeedKeyFrame(const TrackerOptions& options, const Frame& frame,
+                  const KeyFrameDecisionInput& input) {
+  const int inliers = input.inliers;
+  const int reference_matches = input.reference_matches;
+  int tracked_close = 0, untracked_close = 0;
+  for (size_t i = 0; i < frame.size(); ++i) {
+    if (!frame.HasDepth(static_cast<int>(i)) || !frame.IsStatic(static_cast<int>(i)) ||
+        frame.depth[i] > frame.geometry->close_depth)
+      continue;
+    if (frame.map_points[i] != nullptr && !frame.outlier[i]) {
+      ++tracked_close;
+    } else {
+      ++untracked_close;
+    }
+  }
+  const bool need_close =
+      tracked_close < options.min_close_points && untracked_close > options.close_points_to_create;
+  const bool long_since =
+      frame.index >=
+      input.last_keyframe_frame + static_cast<size_t>(options.max_frames_between_keyframes);
+  const bool weak = inliers < 0.25 * reference_matches || need_close;
+  const bool c2 =
+      (inliers < options.reference_ratio * reference_matches || need_close) && inliers > 15;
+  return (long_since || input.mapping_idle || weak) && c2;
+}
+
+KeyFrame* CreateKeyFrame(Map* map, const TrackerOptions& options, Frame& frame) {
+  KeyFrame* kf = map->AddKeyFrame(frame);
+  // New close points from depth, nearest first; at least min_close_points of them.
+  std::vector<std::pair<float, int>> by_depth;
+  for (size_t i = 0; i < kf->frame.size(); ++i) {
+    if (kf->frame.HasDepth(static_cast<int>(i)) && kf->frame.IsStatic(static_cast<int>(i)))
+      by_depth.emplace_back(kf->frame.depth[i], static_cast<int>(i));
+  }
+  std::sort(by_depth.begin(), by_depth.end());
+  int count = 0;
+  for (const auto& [depth, i] : by_depth) {
+    MapPoint* existing = kf->frame.map_points[static_cast<size_t>(i)];
+    if (existing == nullptr || existing->bad) {
+      MapPoint* p = map->AddMapPoint(kf->frame.UnprojectWorld(i), kf);
+      map->AddObservation(p, kf, i);
+      p->UpdateFromObservations();
+    }
+    if (++count > options.min_close_points && depth > kf->frame.geometry->close_depth) break;
+  }
+  return kf;
+}
+
+}  // namespace sdoslam
