@@ -1,12 +1,11 @@
 #include "sdoslam/tracking/tracker.h"
 
 #include <algorithm>
-#include <cmath>
-#include <set>
 
 #include "sdoslam/optim/optimizer.h"
 #include "sdoslam/tracking/initializer.h"
 #include "sdoslam/tracking/keyframe_inserter.h"
+#include "sdoslam/tracking/local_map.h"
 #include "sdoslam/tracking/matcher.h"
 
 namespace sdoslam {
@@ -245,37 +244,8 @@ bool Tracker::TrackReferenceKeyFrame(Frame& frame) {
 }
 
 bool Tracker::TrackLocalMap(Frame& frame, TrackingResult* result) {
-  // Local keyframes: those that see the matched points, plus their best neighbours.
-  std::map<uint64_t, int> votes;
-  for (MapPoint* p : frame.map_points) {
-    if (p == nullptr || p->bad) continue;
-    for (const auto& [kf_id, obs] : p->observations) ++votes[kf_id];
-  }
-  std::vector<KeyFrame*> local;
-  std::set<uint64_t> in_local;
-  KeyFrame* best = nullptr;
-  int best_votes = 0;
-  for (const auto& [kf_id, count] : votes) {
-    KeyFrame* kf = map_->keyframes().at(kf_id).get();
-    if (kf->bad) continue;
-    local.push_back(kf);
-    in_local.insert(kf_id);
-    if (count > best_votes) {
-      best_votes = count;
-      best = kf;
-    }
-  }
-  const size_t direct = local.size();
-  for (size_t k = 0; k < direct && local.size() < 80; ++k) {
-    for (KeyFrame* neighbour : local[k]->Covisible(10)) {
-      if (!neighbour->bad && in_local.insert(neighbour->id).second) local.push_back(neighbour);
-    }
-    if (local[k]->parent != nullptr && !local[k]->parent->bad &&
-        in_local.insert(local[k]->parent->id).second) {
-      local.push_back(local[k]->parent);
-    }
-  }
-  if (best != nullptr) reference_ = best;
+  LocalMap local = FindLocalMap(*map_, frame);
+  if (local.reference != nullptr) reference_ = local.reference;
 
   // Local points, not yet matched in this frame.
   for (size_t i = 0; i < frame.size(); ++i) {
@@ -284,15 +254,8 @@ bool Tracker::TrackLocalMap(Frame& frame, TrackingResult* result) {
     p->last_seen_frame = frame_stamp_;
     ++p->visible;
   }
-  std::vector<MapPoint*> points;
-  std::set<uint64_t> seen;
-  for (KeyFrame* kf : local) {
-    for (MapPoint* p : kf->frame.map_points) {
-      if (p != nullptr && !p->bad && seen.insert(p->id).second) points.push_back(p);
-    }
-  }
-  SearchLocalPoints(frame, points, frame_stamp_, 1.0);
-  local_points_ = points;
+  SearchLocalPoints(frame, local.points, frame_stamp_, 1.0);
+  local_points_ = std::move(local.points);
   for (const MapPoint* p : frame.map_points) result->matches += p != nullptr && !p->bad;
   OptimizeAndCount(frame);
   int inliers = 0;
