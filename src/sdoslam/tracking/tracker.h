@@ -18,6 +18,28 @@ namespace sdoslam {
 // fallback against the reference keyframe, then the local map; motion-only pose optimisation
 // after each; the keyframe decision. Creates keyframes and their close map points; local
 // mapping refines them.
+//
+// Split into parts as stella_vslam splits its tracking module. tracker.cc keeps frame tracking
+// (the motion model with the last frame's temporary points, the reference-keyframe fallback,
+// the search of the local map, the motion-only pose optimisation OptimizeAndCount) and all the
+// state that carries from frame to frame: the last frame, the velocity, the reference keyframe,
+// the frame stamp, the trajectory. The parts:
+//   initializer.h          InitializeMap: the first keyframe and its points
+//   local_map.h            FindLocalMap: the local keyframes, their points, the new reference
+//   keyframe_inserter.h    NeedKeyFrame, CreateKeyFrame: the keyframe decision and insertion
+//   relocalizer.h          Relocalizer: the pose of a frame that frame tracking lost
+//   scene_flow_checker.h   SceneFlowChecker: the paper's consistency check, the last frames'
+//                          images and poses it needs, and the landmark cleanup after it
+//   map_lock.h             MapLockReleaser: work without the map lock (see Track)
+//   tracking_types.h       the options, ConsistencyInput, TrackingResult, RefinePose
+// The checker is a class because it keeps its image history from frame to frame; the
+// relocalizer because it searches with the same map, places and options every time. The others
+// are free functions: they take what they read and return what they make, and the Tracker
+// applies that to its own state (the first keyframe, each new one and the local map's best
+// become the reference), so that each can be tested alone. Parts that end with a pose
+// optimisation get the Tracker's as a callable (RefinePose), those that work on images its
+// MapLockReleaser. The relocalizer is the one part that changes the Tracker's state itself: it
+// is handed the reference keyframe it may replace and the frame stamp it advances.
 class Tracker {
  public:
   // `places` (optional): keyframes by their bags of words; relocalization then also tries the
