@@ -114,7 +114,8 @@ void RunSlam(const RunArgs& args, const RunCommandOptions& given) {
   const RunSummary s = RunOnDataset(run);
   progress_line.End();
   std::cout << FormatRunSummary(s) << "wrote " << args.out
-            << "/CameraTrajectory.txt, KeyFrameTrajectory.txt, config.yaml, frames.csv, mapping.csv, loops.csv"
+            << "/CameraTrajectory.txt, KeyFrameTrajectory.txt, config.yaml, frames.csv, "
+               "mapping.csv, loops.csv"
             << (run.save_masks ? ", masks/, features.csv" : "")
             << (run.save_overlays ? ", overlays/" : "")
             << (run.save_map ? fmt::format(", map.ply ({} static points)", s.map_cloud_points) : "")

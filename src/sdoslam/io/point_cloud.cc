@@ -46,10 +46,10 @@ bool ParseScalarType(const std::string& type, Property* p) {
     bool is_float, is_signed;
   };
   static constexpr Type kTypes[] = {
-      {"char", "int8", 1, false, true},      {"uchar", "uint8", 1, false, false},
-      {"short", "int16", 2, false, true},    {"ushort", "uint16", 2, false, false},
-      {"int", "int32", 4, false, true},      {"uint", "uint32", 4, false, false},
-      {"float", "float32", 4, true, true},   {"double", "float64", 8, true, true}};
+      {"char", "int8", 1, false, true},    {"uchar", "uint8", 1, false, false},
+      {"short", "int16", 2, false, true},  {"ushort", "uint16", 2, false, false},
+      {"int", "int32", 4, false, true},    {"uint", "uint32", 4, false, false},
+      {"float", "float32", 4, true, true}, {"double", "float64", 8, true, true}};
   for (const Type& t : kTypes) {
     if (type == t.name || type == t.alias) {
       p->size = t.size;

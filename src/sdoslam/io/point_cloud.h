@@ -18,7 +18,8 @@ struct ColoredPoint {
 
 // Writes a binary little-endian PLY (vertex: float x, y, z; uchar red, green, blue), the form
 // MeshLab, CloudCompare, Open3D and PCL all read. `comment` lines (no newlines) go in the header.
-// Written by hand: no Debian package here writes PLY (PCL would be a large dependency for 40 lines).
+// Written by hand: no Debian package here writes PLY (PCL would be a large dependency for 40
+// lines).
 void WritePly(std::ostream& out, const std::vector<ColoredPoint>& points,
               const std::vector<std::string>& comments = {});
 

@@ -51,13 +51,14 @@ TEST(PointCloud, BinaryRoundTripKeepsPositionsAndColours) {
 TEST(PointCloud, ReadsAsciiWithOtherPropertiesInAnyOrder) {
   testing::TempDir dir;
   const auto path = dir.path() / "ascii.ply";
-  testing::WriteText(path,
-            "ply\nformat ascii 1.0\nelement vertex 2\nproperty uchar blue\nproperty double z\n"
-            "property float nx\nproperty float x\nproperty float y\nproperty uchar green\n"
-            "property uchar red\nelement face 0\nproperty list uchar int vertex_indices\n"
-            "end_header\n"
-            "3 1.5 0 0.25 -2 2 1\n"
-            "30 -7 0 4 5 20 10\n");
+  testing::WriteText(
+      path,
+      "ply\nformat ascii 1.0\nelement vertex 2\nproperty uchar blue\nproperty double z\n"
+      "property float nx\nproperty float x\nproperty float y\nproperty uchar green\n"
+      "property uchar red\nelement face 0\nproperty list uchar int vertex_indices\n"
+      "end_header\n"
+      "3 1.5 0 0.25 -2 2 1\n"
+      "30 -7 0 4 5 20 10\n");
   const std::vector<ColoredPoint> read = ReadPly(path);
   ASSERT_EQ(read.size(), 2u);
   EXPECT_EQ(read[0].position, Eigen::Vector3f(0.25f, -2.0f, 1.5f));
@@ -77,12 +78,13 @@ TEST(PointCloud, MalformedFilesNameTheFileAndTheProblem) {
 
   const auto no_colour = dir.path() / "no_colour.ply";
   testing::WriteText(no_colour,
-            "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
-            "property float z\nend_header\n1 2 3\n");
+                     "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+                     "property float z\nend_header\n1 2 3\n");
   EXPECT_NE(ErrorOf(no_colour).find("no property red"), std::string::npos) << ErrorOf(no_colour);
 
   const auto big_endian = dir.path() / "big.ply";
-  testing::WriteText(big_endian, "ply\nformat binary_big_endian 1.0\nelement vertex 0\nend_header\n");
+  testing::WriteText(big_endian,
+                     "ply\nformat binary_big_endian 1.0\nelement vertex 0\nend_header\n");
   EXPECT_NE(ErrorOf(big_endian).find("big.ply:2: format binary_big_endian"), std::string::npos)
       << ErrorOf(big_endian);
 

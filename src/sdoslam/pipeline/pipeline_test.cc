@@ -317,8 +317,8 @@ TEST(Pipeline, SdoOnTheRealStaticDeskIsAsGoodAsConventional) {
 // valid depth; it agrees there when its depth is within 4 cm + 3 % of the measured one.
 struct CloudAgreement {
   size_t points = 0;
-  size_t checked = 0;  // (point, frame) pairs on valid depth
-  size_t agree = 0;    // ... whose depth agrees
+  size_t checked = 0;              // (point, frame) pairs on valid depth
+  size_t agree = 0;                // ... whose depth agrees
   double median_colour_error = 0;  // mean |rgb - image| over the channels, agreeing pairs
   // The same with each pixel compared to the colour of another point (the next in the file):
   // what the error is when colours carry no information.
@@ -346,8 +346,7 @@ CloudAgreement CheckCloud(const std::filesystem::path& run_out, const RgbdDatase
     if (!pose) continue;
     cv::Mat mask;
     if (with_masks) {
-      const auto path =
-          dataset.folder() / "dynamic" / dataset.entries()[k].rgb_path.filename();
+      const auto path = dataset.folder() / "dynamic" / dataset.entries()[k].rgb_path.filename();
       mask = cv::imread(path.string(), cv::IMREAD_GRAYSCALE);
       EXPECT_FALSE(mask.empty()) << path;
     }
@@ -356,7 +355,8 @@ CloudAgreement CheckCloud(const std::filesystem::path& run_out, const RgbdDatase
       const Eigen::Vector3d X = T_camera_world * cloud[i].position.cast<double>();
       if (X.z() <= 0.1) continue;
       const Eigen::Vector2d uv = camera.Distort(camera.Project(X));
-      const int u = static_cast<int>(std::lround(uv.x())), v = static_cast<int>(std::lround(uv.y()));
+      const int u = static_cast<int>(std::lround(uv.x())),
+                v = static_cast<int>(std::lround(uv.y()));
       if (u < 0 || v < 0 || u >= frame.depth.cols || v >= frame.depth.rows) continue;
       const float measured = frame.depth.at<float>(v, u);
       if (measured <= 0) continue;
@@ -428,8 +428,8 @@ TEST(PipelineMap, PointsOnPeopleStayOutOfTheStaticMap) {
     const bool oracle = mode == RunMode::kOracle;
     on_people[oracle] = a.on_movers;
     points[oracle] = a.points;
-    std::cout << ToString(mode) << ": " << a.points << " points, " << a.on_movers
-              << " on people; " << a.agree << " of " << a.checked << " depths agree\n";
+    std::cout << ToString(mode) << ": " << a.points << " points, " << a.on_movers << " on people; "
+              << a.agree << " of " << a.checked << " depths agree\n";
   }
   EXPECT_GE(on_people[0], 50u);
   EXPECT_LE(on_people[1], points[1] / 100);

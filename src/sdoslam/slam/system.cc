@@ -374,7 +374,8 @@ std::vector<ColoredPoint> System::StaticMapCloud(int min_observations) const {
     }
     ColoredPoint p;
     p.position = point->position.cast<float>();
-    const Eigen::Vector3d bgr = seen > 0 ? Eigen::Vector3d(bgr_sum / seen) : Eigen::Vector3d(128, 128, 128);
+    const Eigen::Vector3d bgr =
+        seen > 0 ? Eigen::Vector3d(bgr_sum / seen) : Eigen::Vector3d(128, 128, 128);
     for (int k = 0; k < 3; ++k) p.rgb[k] = static_cast<uint8_t>(std::lround(bgr[2 - k]));
     cloud.push_back(p);
   }
