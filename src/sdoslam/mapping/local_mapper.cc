@@ -5,7 +5,7 @@
 
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/stopwatch.h"
-#include "sdoslam/tracking/matcher.h"
+#include "sdoslam/matching/matcher.h"
 
 namespace sdoslam {
 

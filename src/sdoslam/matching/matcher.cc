@@ -1,4 +1,4 @@
-#include "sdoslam/tracking/matcher.h"
+#include "sdoslam/matching/matcher.h"
 
 #include <algorithm>
 #include <array>
