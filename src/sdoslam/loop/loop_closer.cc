@@ -7,6 +7,7 @@
 
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/stopwatch.h"
+#include "sdoslam/mapping/fuse.h"
 #include "sdoslam/matching/matcher.h"
 #include "sdoslam/optim/optimizer.h"
 

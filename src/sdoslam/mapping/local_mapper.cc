@@ -5,6 +5,7 @@
 
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/stopwatch.h"
+#include "sdoslam/mapping/fuse.h"
 #include "sdoslam/matching/matcher.h"
 
 namespace sdoslam {

@@ -50,12 +50,8 @@ bool ProjectIntoImage(const FrameGeometry& g, const Eigen::Isometry3d& T_camera_
   return g.InImage(*u, *v);
 }
 
-// Where a map point should appear in a camera: in the image, within the point's
-// scale-invariance range and seen from less than 60° off its mean viewing direction.
-struct PredictedView {
-  Eigen::Vector3d p;  // camera frame
-  double u, v, distance, view_cos;
-};
+}  // namespace
+
 bool PredictInView(const FrameGeometry& g, const Eigen::Isometry3d& T_camera_world,
                    const Eigen::Vector3d& centre, const MapPoint& point, PredictedView* view) {
   if (!ProjectIntoImage(g, T_camera_world, point.position, &view->p, &view->u, &view->v))
@@ -67,8 +63,6 @@ bool PredictInView(const FrameGeometry& g, const Eigen::Isometry3d& T_camera_wor
   view->view_cos = ray.dot(point.normal) / view->distance;
   return view->view_cos >= 0.5;
 }
-
-}  // namespace
 
 int SearchByProjection(Frame& current, const Frame& last, double radius) {
   const FrameGeometry& g = *current.geometry;
@@ -197,56 +191,4 @@ int SearchByDescriptor(Frame& current, const KeyFrame& keyframe) {
   }
   return matches;
 }
-
-int Fuse(Map& map, KeyFrame* kf, const std::vector<MapPoint*>& points) {
-  const FrameGeometry& g = *kf->frame.geometry;
-  const Eigen::Isometry3d& T = kf->pose();
-  const Eigen::Vector3d centre = kf->CameraCentre();
-  int fused = 0;
-  for (MapPoint* point : points) {
-    if (point == nullptr || point->bad || point->observations.count(kf->id)) continue;
-    PredictedView view;
-    if (!PredictInView(g, T, centre, *point, &view)) continue;
-    const auto& [p, u, v, distance, view_cos] = view;
-    const int level = point->PredictLevel(distance, g);
-    const double radius = 3.0 * g.scale[static_cast<size_t>(level)];
-    int best = 256, best_index = -1;
-    for (int j : kf->frame.FeaturesInArea(u, v, radius)) {
-      const size_t k = static_cast<size_t>(j);
-      const int j_level = kf->frame.keypoints[k].octave;
-      if (j_level < level - 1 || j_level > level) continue;
-      // Reprojection error gate (χ² on the whitened error, as in ORB-SLAM's Fuse).
-      const double du = u - kf->frame.undistorted[k].x, dv = v - kf->frame.undistorted[k].y;
-      double e2 = du * du + dv * dv;
-      double threshold = kChi2Mono;
-      if (kf->frame.right_u[k] >= 0) {
-        const double dr = u - g.intrinsics.bf / p.z() - kf->frame.right_u[k];
-        e2 += dr * dr;
-        threshold = kChi2Stereo;
-      }
-      if (e2 * g.inv_sigma2[static_cast<size_t>(j_level)] > threshold) continue;
-      const int d = DescriptorDistance(point->descriptor.ptr<uint8_t>(),
-                                       kf->frame.descriptors.ptr<uint8_t>(j));
-      if (d < best) {
-        best = d;
-        best_index = j;
-      }
-    }
-    if (best_index < 0 || best > kMatchStrict) continue;
-    MapPoint* existing = kf->frame.map_points[static_cast<size_t>(best_index)];
-    if (existing != nullptr && !existing->bad) {
-      if (existing->observations.size() > point->observations.size()) {
-        map.Replace(point, existing);
-      } else {
-        map.Replace(existing, point);
-      }
-    } else {
-      map.AddObservation(point, kf, best_index);
-      point->UpdateFromObservations();
-    }
-    ++fused;
-  }
-  return fused;
-}
-
 }  // namespace sdoslam
