@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include "sdoslam/optim/optimizer.h"
 #include "sdoslam/synth/renderer.h"
 #include "sdoslam/synth/scenarios.h"
 #include "sdoslam/synth/sensor.h"
