@@ -1,5 +1,6 @@
 #include "sdoslam/mapping/fuse.h"
 
+#include "sdoslam/core/geometry.h"
 #include "sdoslam/matching/matcher.h"
 
 namespace sdoslam {
@@ -22,15 +23,8 @@ int Fuse(Map& map, KeyFrame* kf, const std::vector<MapPoint*>& points) {
       const int j_level = kf->frame.keypoints[k].octave;
       if (j_level < level - 1 || j_level > level) continue;
       // Reprojection error gate (χ² on the whitened error, as in ORB-SLAM's Fuse).
-      const double du = u - kf->frame.undistorted[k].x, dv = v - kf->frame.undistorted[k].y;
-      double e2 = du * du + dv * dv;
-      double threshold = kChi2Mono;
-      if (kf->frame.right_u[k] >= 0) {
-        const double dr = u - g.intrinsics.bf / p.z() - kf->frame.right_u[k];
-        e2 += dr * dr;
-        threshold = kChi2Stereo;
-      }
-      if (e2 * g.inv_sigma2[static_cast<size_t>(j_level)] > threshold) continue;
+      const PointObservation m = kf->frame.Observation(j);
+      if (ReprojectionChi2(g.intrinsics, p, m) > ReprojectionChi2Threshold(m.stereo())) continue;
       const int d = DescriptorDistance(point->descriptor.ptr<uint8_t>(),
                                        kf->frame.descriptors.ptr<uint8_t>(j));
       if (d < best) {

@@ -4,6 +4,7 @@
 #include <set>
 
 #include "sdoslam/core/error.h"
+#include "sdoslam/core/geometry.h"
 #include "sdoslam/core/stopwatch.h"
 #include "sdoslam/mapping/fuse.h"
 #include "sdoslam/matching/matcher.h"
@@ -112,16 +113,14 @@ int LocalMapper::CullRecentPoints(KeyFrame* kf) {
 
 namespace {
 
-// Whitened squared reprojection error of X in keyframe feature i, or +inf behind the camera.
-double Chi2(const KeyFrame& kf, int i, const Eigen::Vector3d& X) {
-  const PinholeIntrinsics& k = kf.frame.geometry->intrinsics;
+// Whether X, triangulated, fails the χ² test of its reprojection onto keyframe feature i; it
+// does behind the camera.
+bool FailsChi2(const KeyFrame& kf, int i, const Eigen::Vector3d& X) {
   const Eigen::Vector3d p = kf.pose() * X;
-  if (p.z() <= 0) return std::numeric_limits<double>::infinity();
+  if (p.z() <= 0) return true;
   const PointObservation m = kf.frame.Observation(i);
-  const double u = k.fx * p.x() / p.z() + k.cx, v = k.fy * p.y() / p.z() + k.cy;
-  double e2 = (u - m.pixel.x()) * (u - m.pixel.x()) + (v - m.pixel.y()) * (v - m.pixel.y());
-  if (m.right_u >= 0) e2 += (u - k.bf / p.z() - m.right_u) * (u - k.bf / p.z() - m.right_u);
-  return e2 * m.inv_sigma2;
+  return ReprojectionChi2(kf.frame.geometry->intrinsics, p, m) >
+         ReprojectionChi2Threshold(m.stereo());
 }
 
 }  // namespace
@@ -200,10 +199,7 @@ int LocalMapper::TriangulateNewPoints(KeyFrame* kf) {
       // Enough parallax, in front of both, consistent in both images and in scale.
       const Eigen::Vector3d ray1 = X - kf->CameraCentre(), ray2 = X - other->CameraCentre();
       if (ray1.normalized().dot(ray2.normalized()) > 0.9998) continue;
-      if (Chi2(*kf, static_cast<int>(i), X) > (kf->frame.right_u[i] >= 0 ? kChi2Stereo : kChi2Mono))
-        continue;
-      if (Chi2(*other, best_j, X) > (other->frame.right_u[j] >= 0 ? kChi2Stereo : kChi2Mono))
-        continue;
+      if (FailsChi2(*kf, static_cast<int>(i), X) || FailsChi2(*other, best_j, X)) continue;
       // Where a view measured depth, the triangulation must agree with it.
       const double z1 = (kf->pose() * X).z(), z2 = (other->pose() * X).z();
       if (kf->frame.depth[i] > 0 && std::abs(z1 - kf->frame.depth[i]) > 0.05 * kf->frame.depth[i])
