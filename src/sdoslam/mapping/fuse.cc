@@ -1,6 +1,7 @@
 #include "sdoslam/mapping/fuse.h"
 
 #include "sdoslam/core/geometry.h"
+#include "sdoslam/matching/best_two.h"
 #include "sdoslam/matching/matcher.h"
 
 namespace sdoslam {
@@ -17,7 +18,7 @@ int Fuse(Map& map, KeyFrame* kf, const std::vector<MapPoint*>& points) {
     const auto& [p, u, v, distance, view_cos] = view;
     const int level = point->PredictLevel(distance, g);
     const double radius = 3.0 * g.scale[static_cast<size_t>(level)];
-    int best = 256, best_index = -1;
+    BestTwo nearest;
     for (int j : kf->frame.FeaturesInArea(u, v, radius)) {
       const size_t k = static_cast<size_t>(j);
       const int j_level = kf->frame.keypoints[k].octave;
@@ -25,14 +26,12 @@ int Fuse(Map& map, KeyFrame* kf, const std::vector<MapPoint*>& points) {
       // Reprojection error gate (χ² on the whitened error, as in ORB-SLAM's Fuse).
       const PointObservation m = kf->frame.Observation(j);
       if (ReprojectionChi2(g.intrinsics, p, m) > ReprojectionChi2Threshold(m.stereo())) continue;
-      const int d = DescriptorDistance(point->descriptor.ptr<uint8_t>(),
-                                       kf->frame.descriptors.ptr<uint8_t>(j));
-      if (d < best) {
-        best = d;
-        best_index = j;
-      }
+      nearest.Add(DescriptorDistance(point->descriptor.ptr<uint8_t>(),
+                                     kf->frame.descriptors.ptr<uint8_t>(j)),
+                  j);
     }
-    if (best_index < 0 || best > kMatchStrict) continue;
+    if (!nearest.found() || nearest.best > kMatchStrict) continue;
+    const int best_index = nearest.best_index;
     MapPoint* existing = kf->frame.map_points[static_cast<size_t>(best_index)];
     if (existing != nullptr && !existing->bad) {
       if (existing->observations.size() > point->observations.size()) {

@@ -7,6 +7,7 @@
 #include "sdoslam/core/geometry.h"
 #include "sdoslam/core/stopwatch.h"
 #include "sdoslam/mapping/fuse.h"
+#include "sdoslam/matching/best_two.h"
 #include "sdoslam/matching/matcher.h"
 
 namespace sdoslam {
@@ -155,7 +156,7 @@ int LocalMapper::TriangulateNewPoints(KeyFrame* kf) {
       const Eigen::Vector3d x1(kf->frame.undistorted[i].x, kf->frame.undistorted[i].y, 1.0);
       const Eigen::Vector3d line = F * x1;
       const double line_norm2 = line.x() * line.x() + line.y() * line.y();
-      int best = 256, second = 256, best_j = -1;
+      BestTwo nearest;
       for (int j : free_other) {
         if (used[static_cast<size_t>(j)]) continue;
         const size_t jj = static_cast<size_t>(j);
@@ -167,19 +168,13 @@ int LocalMapper::TriangulateNewPoints(KeyFrame* kf) {
             3.84 * g.scale[static_cast<size_t>(level)] * g.scale[static_cast<size_t>(level)]) {
           continue;  // off the epipolar line
         }
-        const int distance =
-            DescriptorDistance(kf->frame.descriptors.ptr<uint8_t>(static_cast<int>(i)),
-                               other->frame.descriptors.ptr<uint8_t>(j));
-        if (distance < best) {
-          second = best;
-          best = distance;
-          best_j = j;
-        } else if (distance < second) {
-          second = distance;
-        }
+        nearest.Add(DescriptorDistance(kf->frame.descriptors.ptr<uint8_t>(static_cast<int>(i)),
+                                       other->frame.descriptors.ptr<uint8_t>(j)),
+                    j);
       }
       // Repetitive texture puts look-alikes on the same epipolar line: demand a clear winner.
-      if (best_j < 0 || best > kMatchStrict || best > 0.8 * second) continue;
+      if (!nearest.found() || nearest.best > kMatchStrict || nearest.Ambiguous(0.8)) continue;
+      const int best_j = nearest.best_index;
       const size_t j = static_cast<size_t>(best_j);
       // Linear triangulation (DLT) from the two normalised rays.
       const Eigen::Vector3d r1 = K_inv * x1;

@@ -4,6 +4,8 @@
 #include <array>
 #include <cmath>
 
+#include "sdoslam/matching/best_two.h"
+
 namespace sdoslam {
 namespace {
 
@@ -78,7 +80,7 @@ int SearchByProjection(Frame& current, const Frame& last, double radius) {
     const int level = last.keypoints[i].octave;
     const auto candidates = current.FeaturesInArea(
         u, v, radius * g.scale[static_cast<size_t>(level)], std::max(0, level - 1), level + 1);
-    int best = 256, best_index = -1;
+    BestTwo nearest;
     for (int j : candidates) {
       const MapPoint* existing = current.map_points[static_cast<size_t>(j)];
       if (existing != nullptr && existing->found > 0 && !existing->bad) continue;
@@ -89,17 +91,14 @@ int SearchByProjection(Frame& current, const Frame& last, double radius) {
             radius * g.scale[static_cast<size_t>(level)])
           continue;
       }
-      const int d =
-          DescriptorDistance(point->descriptor.ptr<uint8_t>(), current.descriptors.ptr<uint8_t>(j));
-      if (d < best) {
-        best = d;
-        best_index = j;
-      }
+      nearest.Add(
+          DescriptorDistance(point->descriptor.ptr<uint8_t>(), current.descriptors.ptr<uint8_t>(j)),
+          j);
     }
-    if (best_index >= 0 && best <= kMatchLoose) {
-      current.map_points[static_cast<size_t>(best_index)] = point;
-      histogram.Add(last.keypoints[i].angle,
-                    current.keypoints[static_cast<size_t>(best_index)].angle, best_index);
+    if (nearest.found() && nearest.best <= kMatchLoose) {
+      const int j = nearest.best_index;
+      current.map_points[static_cast<size_t>(j)] = point;
+      histogram.Add(last.keypoints[i].angle, current.keypoints[static_cast<size_t>(j)].angle, j);
       ++matches;
     }
   }
@@ -126,7 +125,7 @@ int SearchLocalPoints(Frame& current, const std::vector<MapPoint*>& points, uint
     const double radius =
         radius_factor * (view_cos > 0.998 ? 2.5 : 4.0) * g.scale[static_cast<size_t>(level)];
     const auto candidates = current.FeaturesInArea(u, v, radius, level - 1, level);
-    int best = 256, second = 256, best_index = -1, best_level = -1, second_level = -1;
+    BestTwo nearest;
     for (int j : candidates) {
       const MapPoint* existing = current.map_points[static_cast<size_t>(j)];
       if (existing != nullptr && !existing->bad && existing->observations.size() > 0) continue;
@@ -134,23 +133,18 @@ int SearchLocalPoints(Frame& current, const std::vector<MapPoint*>& points, uint
         const double ur = u - g.intrinsics.bf / p.z();
         if (std::abs(ur - current.right_u[static_cast<size_t>(j)]) > radius) continue;
       }
-      const int d =
-          DescriptorDistance(point->descriptor.ptr<uint8_t>(), current.descriptors.ptr<uint8_t>(j));
-      const int j_level = current.keypoints[static_cast<size_t>(j)].octave;
-      if (d < best) {
-        second = best;
-        second_level = best_level;
-        best = d;
-        best_level = j_level;
-        best_index = j;
-      } else if (d < second) {
-        second = d;
-        second_level = j_level;
-      }
+      nearest.Add(
+          DescriptorDistance(point->descriptor.ptr<uint8_t>(), current.descriptors.ptr<uint8_t>(j)),
+          j);
     }
-    if (best_index < 0 || best > kMatchLoose) continue;
-    if (best_level == second_level && best > 0.8 * second) continue;  // ambiguous
-    current.map_points[static_cast<size_t>(best_index)] = point;
+    if (!nearest.found() || nearest.best > kMatchLoose) continue;
+    // Ambiguous only when the runner-up is on the same pyramid level (-1: there is none).
+    const auto level_of = [&](int j) {
+      return j < 0 ? -1 : current.keypoints[static_cast<size_t>(j)].octave;
+    };
+    if (level_of(nearest.best_index) == level_of(nearest.second_index) && nearest.Ambiguous(0.8))
+      continue;
+    current.map_points[static_cast<size_t>(nearest.best_index)] = point;
     point->last_seen_frame = frame_stamp;
     ++matches;
   }
@@ -164,20 +158,15 @@ int SearchByDescriptor(Frame& current, const KeyFrame& keyframe) {
   for (size_t i = 0; i < keyframe.frame.size(); ++i) {
     MapPoint* point = keyframe.frame.map_points[i];
     if (point == nullptr || point->bad) continue;
-    int best = 256, second = 256, best_index = -1;
+    BestTwo nearest;
     const uint8_t* d_kf = keyframe.frame.descriptors.ptr<uint8_t>(static_cast<int>(i));
     for (size_t j = 0; j < current.size(); ++j) {
       if (!current.IsStatic(static_cast<int>(j))) continue;
-      const int d = DescriptorDistance(d_kf, current.descriptors.ptr<uint8_t>(static_cast<int>(j)));
-      if (d < best) {
-        second = best;
-        best = d;
-        best_index = static_cast<int>(j);
-      } else if (d < second) {
-        second = d;
-      }
+      nearest.Add(DescriptorDistance(d_kf, current.descriptors.ptr<uint8_t>(static_cast<int>(j))),
+                  static_cast<int>(j));
     }
-    if (best_index < 0 || best > kMatchStrict || best > 0.7 * second) continue;
+    if (!nearest.found() || nearest.best > kMatchStrict || nearest.Ambiguous(0.7)) continue;
+    const int best = nearest.best, best_index = nearest.best_index;
     if (best >= best_for_feature[static_cast<size_t>(best_index)]) continue;
     if (current.map_points[static_cast<size_t>(best_index)] == nullptr) ++matches;
     best_for_feature[static_cast<size_t>(best_index)] = best;
