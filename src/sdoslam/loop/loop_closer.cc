@@ -7,8 +7,9 @@
 
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/stopwatch.h"
+#include "sdoslam/mapping/fuse.h"
+#include "sdoslam/matching/matcher.h"
 #include "sdoslam/optim/optimizer.h"
-#include "sdoslam/tracking/matcher.h"
 
 namespace sdoslam {
 

@@ -6,8 +6,8 @@
 #include <vector>
 
 #include "sdoslam/core/camera.h"
+#include "sdoslam/core/geometry.h"
 #include "sdoslam/features/orb_extractor.h"
-#include "sdoslam/optim/optimizer.h"
 
 namespace sdoslam {
 

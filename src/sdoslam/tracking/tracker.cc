@@ -6,8 +6,8 @@
 #include <set>
 
 #include "sdoslam/core/error.h"
+#include "sdoslam/matching/matcher.h"
 #include "sdoslam/optim/optimizer.h"
-#include "sdoslam/tracking/matcher.h"
 #include "sdoslam/tracking/static_motion.h"
 
 namespace sdoslam {

@@ -1,7 +1,8 @@
-#include "sdoslam/tracking/matcher.h"
+#include "sdoslam/matching/matcher.h"
 
 #include <gtest/gtest.h>
 
+#include "sdoslam/optim/optimizer.h"
 #include "sdoslam/synth/renderer.h"
 #include "sdoslam/synth/scenarios.h"
 #include "sdoslam/synth/sensor.h"

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <Eigen/Geometry>
 #include <vector>
 
 #include "sdoslam/map/map.h"
@@ -26,9 +27,15 @@ int SearchLocalPoints(Frame& current, const std::vector<MapPoint*>& points, uint
 // Lowe's ratio test: a fallback when no pose prediction is good enough.
 int SearchByDescriptor(Frame& current, const KeyFrame& keyframe);
 
-// Projects `points` into `keyframe`; where one lands on a feature with a similar descriptor,
-// the point is added to it, or fused with the point the feature already has (the one with
-// more observations stays). Returns the number of fusions and additions.
-int Fuse(Map& map, KeyFrame* keyframe, const std::vector<MapPoint*>& points);
+// Where a map point should appear in a camera at T_camera_world (centre: its centre): in the
+// image, within the point's scale-invariance range and seen from less than 60° off its mean
+// viewing direction. False when it should not be seen there. The local-map search looks for
+// points where they should appear; fusion (mapping/fuse.h) does too.
+struct PredictedView {
+  Eigen::Vector3d p;  // camera frame
+  double u, v, distance, view_cos;
+};
+bool PredictInView(const FrameGeometry& g, const Eigen::Isometry3d& T_camera_world,
+                   const Eigen::Vector3d& centre, const MapPoint& point, PredictedView* view);
 
 }  // namespace sdoslam
