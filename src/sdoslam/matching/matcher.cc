@@ -151,28 +151,54 @@ int SearchLocalPoints(Frame& current, const std::vector<MapPoint*>& points, uint
   return matches;
 }
 
-int SearchByDescriptor(Frame& current, const KeyFrame& keyframe) {
+int SearchByDescriptor(Frame& current, const KeyFrame& keyframe,
+                       const FeatureVector* keyframe_words, const FeatureVector* current_words) {
   int matches = 0;
   RotationHistogram histogram;
   std::vector<int> best_for_feature(current.size(), 256);
-  for (size_t i = 0; i < keyframe.frame.size(); ++i) {
+  // Keyframe feature i against the frame's features `candidates` (nullptr: all of them).
+  auto match = [&](size_t i, const std::vector<int>* candidates) {
     MapPoint* point = keyframe.frame.map_points[i];
-    if (point == nullptr || point->bad) continue;
+    if (point == nullptr || point->bad) return;
     BestTwo nearest;
     const uint8_t* d_kf = keyframe.frame.descriptors.ptr<uint8_t>(static_cast<int>(i));
-    for (size_t j = 0; j < current.size(); ++j) {
-      if (!current.IsStatic(static_cast<int>(j))) continue;
-      nearest.Add(DescriptorDistance(d_kf, current.descriptors.ptr<uint8_t>(static_cast<int>(j))),
-                  static_cast<int>(j));
+    auto consider = [&](int j) {
+      if (!current.IsStatic(j)) return;
+      nearest.Add(DescriptorDistance(d_kf, current.descriptors.ptr<uint8_t>(j)), j);
+    };
+    if (candidates == nullptr) {
+      for (size_t j = 0; j < current.size(); ++j) consider(static_cast<int>(j));
+    } else {
+      for (int j : *candidates) consider(j);
     }
-    if (!nearest.found() || nearest.best > kMatchStrict || nearest.Ambiguous(0.7)) continue;
+    if (!nearest.found() || nearest.best > kMatchStrict || nearest.Ambiguous(0.7)) return;
     const int best = nearest.best, best_index = nearest.best_index;
-    if (best >= best_for_feature[static_cast<size_t>(best_index)]) continue;
+    if (best >= best_for_feature[static_cast<size_t>(best_index)]) return;
     if (current.map_points[static_cast<size_t>(best_index)] == nullptr) ++matches;
     best_for_feature[static_cast<size_t>(best_index)] = best;
     current.map_points[static_cast<size_t>(best_index)] = point;
     histogram.Add(keyframe.frame.keypoints[i].angle,
                   current.keypoints[static_cast<size_t>(best_index)].angle, best_index);
+  };
+  if (keyframe_words != nullptr && current_words != nullptr) {
+    // Both maps are ordered by node: walk them side by side.
+    auto a = keyframe_words->begin(), b = current_words->begin();
+    while (a != keyframe_words->end() && b != current_words->end()) {
+      if (a->first < b->first) {
+        ++a;
+      } else if (b->first < a->first) {
+        ++b;
+      } else {
+        for (int i : a->second) {
+          if (i >= 0 && static_cast<size_t>(i) < keyframe.frame.size())
+            match(static_cast<size_t>(i), &b->second);
+        }
+        ++a;
+        ++b;
+      }
+    }
+  } else {
+    for (size_t i = 0; i < keyframe.frame.size(); ++i) match(i, nullptr);
   }
   for (int j : histogram.Rejected()) {
     if (current.map_points[static_cast<size_t>(j)] != nullptr) --matches;

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <map>
 #include <vector>
 
 #include "sdoslam/map/map.h"
@@ -23,9 +24,19 @@ int SearchByProjection(Frame& current, const Frame& last, double radius);
 int SearchLocalPoints(Frame& current, const std::vector<MapPoint*>& points, uint64_t frame_stamp,
                       double radius_factor, bool count_visible = true);
 
-// Brute-force descriptor matching of `current` against the map points of `keyframe` with
-// Lowe's ratio test: a fallback when no pose prediction is good enough.
-int SearchByDescriptor(Frame& current, const KeyFrame& keyframe);
+// A direct index of a vocabulary (place/vocabulary.h's FeatureVector, the same type): node id
+// -> indices of the features whose words lie below that node, ascending.
+using FeatureVector = std::map<uint32_t, std::vector<int>>;
+
+// Descriptor matching of `current` against the map points of `keyframe` with Lowe's ratio test
+// and a rotation-consistency check: for when no pose prediction is good enough (tracking
+// against the reference keyframe, relocalization, loop verification). With both direct
+// indexes, vocabulary-guided as ORB-SLAM's SearchByBoW: a keyframe feature is compared only
+// with the frame's features under the same vocabulary node, about a hundredth of them;
+// without, with every static feature of the frame.
+int SearchByDescriptor(Frame& current, const KeyFrame& keyframe,
+                       const FeatureVector* keyframe_words = nullptr,
+                       const FeatureVector* current_words = nullptr);
 
 // Where a map point should appear in a camera at T_camera_world (centre: its centre): in the
 // image, within the point's scale-invariance range and seen from less than 60° off its mean
