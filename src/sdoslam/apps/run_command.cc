@@ -38,6 +38,7 @@ struct RunArgs {
   RunOverrides overrides;
   bool save_overlays = false;
   bool save_masks = false;
+  bool save_map = false;
 };
 
 // Options of the dynamic front end say so when the mode has no front end.
@@ -104,6 +105,7 @@ void RunSlam(const RunArgs& args, const RunCommandOptions& given) {
   run.slam.sequential = run.slam.sequential || args.sequential;
   run.save_overlays = run.save_overlays || args.save_overlays;
   run.save_masks = run.save_masks || args.save_masks;
+  run.save_map = run.save_map || args.save_map;
   run.out = args.out;
   InterruptHandler interrupts;
   run.stop_requested = [] { return InterruptHandler::Requested(); };
@@ -112,9 +114,12 @@ void RunSlam(const RunArgs& args, const RunCommandOptions& given) {
   const RunSummary s = RunOnDataset(run);
   progress_line.End();
   std::cout << FormatRunSummary(s) << "wrote " << args.out
-            << "/CameraTrajectory.txt, KeyFrameTrajectory.txt, config.yaml, frames.csv, mapping.csv, loops.csv"
+            << "/CameraTrajectory.txt, KeyFrameTrajectory.txt, config.yaml, frames.csv, "
+               "mapping.csv, loops.csv"
             << (run.save_masks ? ", masks/, features.csv" : "")
-            << (run.save_overlays ? ", overlays/" : "") << ", manifest.json\n";
+            << (run.save_overlays ? ", overlays/" : "")
+            << (run.save_map ? fmt::format(", map.ply ({} static points)", s.map_cloud_points) : "")
+            << ", manifest.json\n";
   if (s.masks) std::cout << '\n' << FormatMaskEvaluation(*s.masks, "dynamic masks");
   if (s.evaluation) std::cout << '\n' << FormatTable({*s.evaluation}, EvaluationOptions{});
   if (s.interrupted) {
@@ -162,6 +167,9 @@ void AddRunCommand(CLI::App& app) {
   cmd->add_flag("--save-masks", args->save_masks,
                 "write masks/<frame>.png (0 static, 1 known movable, 2 moving unknown) and "
                 "features.csv, for sdoslam eval-masks");
+  cmd->add_flag("--save-map", args->save_map,
+                "write map.ply: the static map as a coloured point cloud (points on things found "
+                "moving left out), for MeshLab, CloudCompare or Open3D");
   cmd->callback([args, given] { RunSlam(*args, *given); });
 }
 

@@ -40,6 +40,7 @@ void SdoClassifierOptions::Check() const {
   fraction(min_in_front_of_outline, "min_in_front_of_outline");
   fraction(max_segment_area, "max_segment_area");
   fraction(persistence_overlap, "persistence_overlap");
+  fraction(persistence_large_overlap, "persistence_large_overlap");
   fraction(persistence_min_in_front, "persistence_min_in_front");
   if (persistence_min_ordered < 0) throw Error("classifier.persistence_min_ordered must be ≥ 0");
   if (same_depth_tolerance < 0) throw Error("classifier.same_depth_tolerance must be ≥ 0");
@@ -231,8 +232,11 @@ SdoResult SdoClassifier::Classify(const Segmentation& segments,
       const int ordered = st.in_front + st.behind;
       const bool behind = ordered >= options_.persistence_min_ordered &&
                           st.in_front < options_.persistence_min_in_front * ordered;
-      if (st.area > 0 && st.area <= max_area && !behind &&
-          remembered[static_cast<size_t>(s)] >= options_.persistence_overlap * st.area)
+      const int memory = remembered[static_cast<size_t>(s)];
+      const bool covered = st.area <= max_area
+                               ? memory >= options_.persistence_overlap * st.area
+                               : memory >= options_.persistence_large_overlap * st.area;
+      if (st.area > 0 && !behind && covered)
         moving[static_cast<size_t>(s)] |= 2;  // remembered, not refreshed
     }
     cv::subtract(memory, cv::Scalar(1), memory);  // saturates at 0

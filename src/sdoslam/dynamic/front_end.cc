@@ -146,6 +146,7 @@ FrontEndOptions ReadFrontEndOptions(ConfigMap& root) {
     s->Read("max_segment_area", &c.max_segment_area);
     s->Read("persistence_frames", &c.persistence_frames);
     s->Read("persistence_overlap", &c.persistence_overlap);
+    s->Read("persistence_large_overlap", &c.persistence_large_overlap);
     s->Read("persistence_min_in_front", &c.persistence_min_in_front);
     s->Read("persistence_min_ordered", &c.persistence_min_ordered);
     s->Read("margin_px", &c.margin_px);
@@ -227,6 +228,7 @@ void WriteFrontEndOptions(const FrontEndOptions& o, YAML::Emitter* out) {
   kv("max_segment_area", c.max_segment_area);
   kv("persistence_frames", c.persistence_frames);
   kv("persistence_overlap", c.persistence_overlap);
+  kv("persistence_large_overlap", c.persistence_large_overlap);
   kv("persistence_min_in_front", c.persistence_min_in_front);
   kv("persistence_min_ordered", c.persistence_min_ordered);
   kv("margin_px", c.margin_px);

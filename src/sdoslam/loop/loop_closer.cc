@@ -7,8 +7,9 @@
 
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/stopwatch.h"
+#include "sdoslam/mapping/fuse.h"
+#include "sdoslam/matching/matcher.h"
 #include "sdoslam/optim/optimizer.h"
-#include "sdoslam/tracking/matcher.h"
 
 namespace sdoslam {
 
@@ -57,10 +58,11 @@ LoopResult LoopCloser::Process(KeyFrame* keyframe, std::mutex* map_mutex,
   if (map_mutex != nullptr) lock = std::unique_lock<std::mutex>(*map_mutex);
   if (keyframe->bad) return result;  // culled by local mapping: its features are gone
   // Described and indexed even with loop closing off: relocalization looks places up too.
-  const BowVector bow = places_->Describe(keyframe->frame);
+  FeatureVector words;  // for vocabulary-guided matching, here and in relocalization
+  const BowVector bow = places_->Describe(keyframe->frame, &words);
   const std::vector<KeyFrame*> candidates =
       options_.enabled ? DetectCandidates(keyframe, bow) : std::vector<KeyFrame*>{};
-  places_->Add(keyframe, bow);
+  places_->Add(keyframe, bow, std::move(words));
   result.detect_ms = MsSince(start);
   if (candidates.empty()) return result;
   result.detected = true;
@@ -191,7 +193,9 @@ std::vector<KeyFrame*> LoopCloser::DetectCandidates(KeyFrame* keyframe, const Bo
 bool LoopCloser::Verify(KeyFrame* keyframe, KeyFrame* candidate, Verified* verified) {
   Frame probe = keyframe->frame;
   std::fill(probe.map_points.begin(), probe.map_points.end(), nullptr);
-  verified->matches = SearchByDescriptor(probe, *candidate);
+  // Vocabulary-guided (both keyframes are in the places).
+  verified->matches = SearchByDescriptor(probe, *candidate, places_->Features(candidate->id),
+                                         places_->Features(keyframe->id));
   spdlog::debug("loop: verify keyframe {} against {}: {} matches", keyframe->id, candidate->id,
                 verified->matches);
   if (verified->matches < options_.min_matches) return false;

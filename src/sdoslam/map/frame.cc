@@ -49,9 +49,17 @@ Frame::Frame(size_t frame_index, double time, const cv::Mat& bgr, const cv::Mat&
   map_points.assign(n, nullptr);
   outlier.assign(n, false);
   label.assign(n, 0);
+  colors.assign(n, cv::Vec3b(0, 0, 0));
   for (size_t i = 0; i < n; ++i) {
     const int u = static_cast<int>(std::lround(keypoints[i].pt.x)),
               v = static_cast<int>(std::lround(keypoints[i].pt.y));
+    const int cu = std::clamp(u, 0, bgr.cols - 1), cv_row = std::clamp(v, 0, bgr.rows - 1);
+    if (bgr.type() == CV_8UC3) {
+      colors[i] = bgr.at<cv::Vec3b>(cv_row, cu);
+    } else if (bgr.type() == CV_8UC1) {
+      const uint8_t g = bgr.at<uint8_t>(cv_row, cu);
+      colors[i] = cv::Vec3b(g, g, g);
+    }
     if (!depth_image.empty() && u >= 0 && v >= 0 && u < depth_image.cols && v < depth_image.rows) {
       const float d = depth_image.at<float>(v, u);
       if (d > 0) {
@@ -172,6 +180,7 @@ void Frame::ReleaseFeatures() {
   std::vector<MapPoint*>().swap(map_points);
   std::vector<bool>().swap(outlier);
   std::vector<uint8_t>().swap(label);
+  std::vector<cv::Vec3b>().swap(colors);
   std::vector<int>().swap(grid_start_);  // FeaturesInArea finds nothing in a released frame
   std::vector<int>().swap(grid_features_);
 }

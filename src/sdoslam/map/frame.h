@@ -6,8 +6,8 @@
 #include <vector>
 
 #include "sdoslam/core/camera.h"
+#include "sdoslam/core/geometry.h"
 #include "sdoslam/features/orb_extractor.h"
-#include "sdoslam/optim/optimizer.h"
 
 namespace sdoslam {
 
@@ -73,6 +73,9 @@ class Frame {
   std::vector<MapPoint*> map_points;  // matched map point per feature, or nullptr
   std::vector<bool> outlier;
   std::vector<uint8_t> label;  // 0 = static; otherwise the dynamic label of the front end
+  // Colour of the image at each keypoint (B, G, R; grey images give equal channels): the map's
+  // point cloud takes its colours from here (System::StaticMapCloud).
+  std::vector<cv::Vec3b> colors;
   Eigen::Isometry3d T_camera_world = Eigen::Isometry3d::Identity();
 
  private:

@@ -4,8 +4,11 @@
 #include <set>
 
 #include "sdoslam/core/error.h"
+#include "sdoslam/core/geometry.h"
 #include "sdoslam/core/stopwatch.h"
-#include "sdoslam/tracking/matcher.h"
+#include "sdoslam/mapping/fuse.h"
+#include "sdoslam/matching/best_two.h"
+#include "sdoslam/matching/matcher.h"
 
 namespace sdoslam {
 
@@ -111,16 +114,14 @@ int LocalMapper::CullRecentPoints(KeyFrame* kf) {
 
 namespace {
 
-// Whitened squared reprojection error of X in keyframe feature i, or +inf behind the camera.
-double Chi2(const KeyFrame& kf, int i, const Eigen::Vector3d& X) {
-  const PinholeIntrinsics& k = kf.frame.geometry->intrinsics;
+// Whether X, triangulated, fails the χ² test of its reprojection onto keyframe feature i; it
+// does behind the camera.
+bool FailsChi2(const KeyFrame& kf, int i, const Eigen::Vector3d& X) {
   const Eigen::Vector3d p = kf.pose() * X;
-  if (p.z() <= 0) return std::numeric_limits<double>::infinity();
+  if (p.z() <= 0) return true;
   const PointObservation m = kf.frame.Observation(i);
-  const double u = k.fx * p.x() / p.z() + k.cx, v = k.fy * p.y() / p.z() + k.cy;
-  double e2 = (u - m.pixel.x()) * (u - m.pixel.x()) + (v - m.pixel.y()) * (v - m.pixel.y());
-  if (m.right_u >= 0) e2 += (u - k.bf / p.z() - m.right_u) * (u - k.bf / p.z() - m.right_u);
-  return e2 * m.inv_sigma2;
+  return ReprojectionChi2(kf.frame.geometry->intrinsics, p, m) >
+         ReprojectionChi2Threshold(m.stereo());
 }
 
 }  // namespace
@@ -155,7 +156,7 @@ int LocalMapper::TriangulateNewPoints(KeyFrame* kf) {
       const Eigen::Vector3d x1(kf->frame.undistorted[i].x, kf->frame.undistorted[i].y, 1.0);
       const Eigen::Vector3d line = F * x1;
       const double line_norm2 = line.x() * line.x() + line.y() * line.y();
-      int best = 256, second = 256, best_j = -1;
+      BestTwo nearest;
       for (int j : free_other) {
         if (used[static_cast<size_t>(j)]) continue;
         const size_t jj = static_cast<size_t>(j);
@@ -167,19 +168,13 @@ int LocalMapper::TriangulateNewPoints(KeyFrame* kf) {
             3.84 * g.scale[static_cast<size_t>(level)] * g.scale[static_cast<size_t>(level)]) {
           continue;  // off the epipolar line
         }
-        const int distance =
-            DescriptorDistance(kf->frame.descriptors.ptr<uint8_t>(static_cast<int>(i)),
-                               other->frame.descriptors.ptr<uint8_t>(j));
-        if (distance < best) {
-          second = best;
-          best = distance;
-          best_j = j;
-        } else if (distance < second) {
-          second = distance;
-        }
+        nearest.Add(DescriptorDistance(kf->frame.descriptors.ptr<uint8_t>(static_cast<int>(i)),
+                                       other->frame.descriptors.ptr<uint8_t>(j)),
+                    j);
       }
       // Repetitive texture puts look-alikes on the same epipolar line: demand a clear winner.
-      if (best_j < 0 || best > kMatchStrict || best > 0.8 * second) continue;
+      if (!nearest.found() || nearest.best > kMatchStrict || nearest.Ambiguous(0.8)) continue;
+      const int best_j = nearest.best_index;
       const size_t j = static_cast<size_t>(best_j);
       // Linear triangulation (DLT) from the two normalised rays.
       const Eigen::Vector3d r1 = K_inv * x1;
@@ -199,10 +194,7 @@ int LocalMapper::TriangulateNewPoints(KeyFrame* kf) {
       // Enough parallax, in front of both, consistent in both images and in scale.
       const Eigen::Vector3d ray1 = X - kf->CameraCentre(), ray2 = X - other->CameraCentre();
       if (ray1.normalized().dot(ray2.normalized()) > 0.9998) continue;
-      if (Chi2(*kf, static_cast<int>(i), X) > (kf->frame.right_u[i] >= 0 ? kChi2Stereo : kChi2Mono))
-        continue;
-      if (Chi2(*other, best_j, X) > (other->frame.right_u[j] >= 0 ? kChi2Stereo : kChi2Mono))
-        continue;
+      if (FailsChi2(*kf, static_cast<int>(i), X) || FailsChi2(*other, best_j, X)) continue;
       // Where a view measured depth, the triangulation must agree with it.
       const double z1 = (kf->pose() * X).z(), z2 = (other->pose() * X).z();
       if (kf->frame.depth[i] > 0 && std::abs(z1 - kf->frame.depth[i]) > 0.05 * kf->frame.depth[i])

@@ -2,10 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include "sdoslam/matching/matcher.h"
 #include "sdoslam/synth/renderer.h"
 #include "sdoslam/synth/scenarios.h"
 #include "sdoslam/synth/sensor.h"
-#include "sdoslam/tracking/matcher.h"
 
 namespace sdoslam {
 namespace {

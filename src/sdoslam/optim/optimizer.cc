@@ -8,7 +8,7 @@ namespace {
 
 ceres::CostFunction* MakeResidual(const PinholeIntrinsics& k, const PointObservation& m) {
   const double sqrt_info = std::sqrt(m.inv_sigma2);
-  if (m.right_u >= 0) {
+  if (m.stereo()) {
     return new StereoReprojectionError(Eigen::Vector3d(m.pixel.x(), m.pixel.y(), m.right_u),
                                        sqrt_info, k);
   }
@@ -20,16 +20,8 @@ double Chi2(const PinholeIntrinsics& k, const Eigen::Isometry3d& T, const Eigen:
             const PointObservation& m) {
   const Eigen::Vector3d p = T * X;
   if (p.z() <= 1e-6) return std::numeric_limits<double>::infinity();
-  const double u = k.fx * p.x() / p.z() + k.cx, v = k.fy * p.y() / p.z() + k.cy;
-  double e2 = (u - m.pixel.x()) * (u - m.pixel.x()) + (v - m.pixel.y()) * (v - m.pixel.y());
-  if (m.right_u >= 0) {
-    const double ur = u - k.bf / p.z();
-    e2 += (ur - m.right_u) * (ur - m.right_u);
-  }
-  return e2 * m.inv_sigma2;
+  return ReprojectionChi2(k, p, m);
 }
-
-double Threshold(const PointObservation& m) { return m.right_u >= 0 ? kChi2Stereo : kChi2Mono; }
 
 ceres::Problem::Options ProblemOptions() {
   ceres::Problem::Options o;
@@ -63,8 +55,8 @@ PoseOptimizationResult OptimizePose(const PinholeIntrinsics& k, const Eigen::Iso
     for (size_t i = 0; i < observations.size(); ++i) {
       if (!result.inlier[i]) continue;
       const PointObservation& m = observations[i];
-      problem.AddResidualBlock(MakeResidual(k, m), m.right_u >= 0 ? &huber_stereo : &huber_mono,
-                               pose, fixed_points[i].data());
+      problem.AddResidualBlock(MakeResidual(k, m), m.stereo() ? &huber_stereo : &huber_mono, pose,
+                               fixed_points[i].data());
       problem.SetParameterBlockConstant(fixed_points[i].data());
       ++used;
     }
@@ -79,7 +71,8 @@ PoseOptimizationResult OptimizePose(const PinholeIntrinsics& k, const Eigen::Iso
     // Reclassify every observation, including earlier outliers, at the new pose.
     const Eigen::Isometry3d T = PoseFromParameters(pose);
     for (size_t i = 0; i < observations.size(); ++i) {
-      result.inlier[i] = Chi2(k, T, points[i], observations[i]) <= Threshold(observations[i]);
+      result.inlier[i] = Chi2(k, T, points[i], observations[i]) <=
+                         ReprojectionChi2Threshold(observations[i].stereo());
     }
   }
   result.T_camera_world = PoseFromParameters(pose);
@@ -106,7 +99,7 @@ std::vector<bool> BundleAdjust(const PinholeIntrinsics& k, BundleAdjustmentProbl
       if (!inlier[o]) continue;
       const auto& obs = ba->observations[o];
       problem.AddResidualBlock(MakeResidual(k, obs.measurement),
-                               obs.measurement.right_u >= 0 ? &huber_stereo : &huber_mono,
+                               obs.measurement.stereo() ? &huber_stereo : &huber_mono,
                                poses[static_cast<size_t>(obs.pose)].data(),
                                ba->points[static_cast<size_t>(obs.point)].data());
     }
@@ -127,7 +120,7 @@ std::vector<bool> BundleAdjust(const PinholeIntrinsics& k, BundleAdjustmentProbl
       const auto& obs = ba->observations[o];
       const Eigen::Isometry3d T = PoseFromParameters(poses[static_cast<size_t>(obs.pose)].data());
       inlier[o] = Chi2(k, T, ba->points[static_cast<size_t>(obs.point)], obs.measurement) <=
-                  Threshold(obs.measurement);
+                  ReprojectionChi2Threshold(obs.measurement.stereo());
     }
   };
   if (!ba->observations.empty()) {

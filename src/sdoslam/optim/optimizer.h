@@ -3,20 +3,10 @@
 #include <Eigen/Geometry>
 #include <vector>
 
+#include "sdoslam/core/geometry.h"
 #include "sdoslam/optim/residuals.h"
 
 namespace sdoslam {
-
-// One image measurement of a point. right_u < 0: no depth (monocular residual).
-struct PointObservation {
-  Eigen::Vector2d pixel = Eigen::Vector2d::Zero();  // undistorted
-  double right_u = -1.0;
-  double inv_sigma2 = 1.0;  // 1 / (pyramid scale of the keypoint's level)²
-};
-
-// χ² (95 %) thresholds of ORB-SLAM for 2 and 3 degrees of freedom.
-inline constexpr double kChi2Mono = 5.991;
-inline constexpr double kChi2Stereo = 7.815;
 
 struct PoseOptimizationOptions {
   int rounds = 4;  // outlier classification rounds

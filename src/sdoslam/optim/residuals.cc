@@ -1,12 +1,6 @@
 #include "sdoslam/optim/residuals.h"
 
 namespace sdoslam {
-Eigen::Matrix3d Hat(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d m;
-  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-  return m;
-}
-
 namespace {
 
 Eigen::Matrix3d ExpSO3(const Eigen::Vector3d& w) {

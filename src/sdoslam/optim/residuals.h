@@ -4,6 +4,8 @@
 
 #include <Eigen/Geometry>
 
+#include "sdoslam/core/geometry.h"
+
 namespace sdoslam {
 
 // A camera pose T_camera_world as a Ceres parameter block of 7 numbers [qx qy qz qw tx ty tz].
@@ -21,16 +23,8 @@ class PoseManifold : public ceres::Manifold {
   bool MinusJacobian(const double* x, double* jacobian) const override;
 };
 
-// The skew-symmetric matrix of v: Hat(v)·x = v × x.
-Eigen::Matrix3d Hat(const Eigen::Vector3d& v);
-
 void PoseToParameters(const Eigen::Isometry3d& T_camera_world, double* parameters);
 Eigen::Isometry3d PoseFromParameters(const double* parameters);
-
-struct PinholeIntrinsics {
-  double fx = 0, fy = 0, cx = 0, cy = 0;
-  double bf = 0;  // baseline × fx of the virtual stereo pair (RGB-D: depth → right image)
-};
 
 // Reprojection error of a world point in a camera, whitened by the keypoint's level:
 // sqrt_information · (π(T·X) − observed). Blocks: pose (7), point (3).

@@ -8,6 +8,7 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <exception>
+#include <fstream>
 #include <opencv2/core/version.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -76,6 +77,7 @@ RunOptions LoadRunConfig(const std::filesystem::path& config) {
     section->Read("sequential", &run.slam.sequential);
     section->Read("save_overlays", &run.save_overlays);
     section->Read("save_masks", &run.save_masks);
+    section->Read("save_map", &run.save_map);
     section->RejectUnknownKeys();
   }
   if (std::optional<ConfigMap> versions = root.Section("versions")) {
@@ -126,6 +128,7 @@ std::string ResolvedConfig(const RunOptions& run) {
   resolved << YAML::Key << "sequential" << YAML::Value << run.slam.sequential;
   resolved << YAML::Key << "save_overlays" << YAML::Value << run.save_overlays;
   resolved << YAML::Key << "save_masks" << YAML::Value << run.save_masks;
+  resolved << YAML::Key << "save_map" << YAML::Value << run.save_map;
   resolved << YAML::EndMap;
   WriteCameraOptions(run.camera, &resolved);
   WriteSlamOptions(run.slam, &resolved);
@@ -489,6 +492,17 @@ RunSummary RunOnDataset(const RunOptions& options) {
   }
   results.WriteText("loops.csv", loop_log);
   if (run.save_masks) results.WriteText("features.csv", feature_log);
+  if (run.save_map) {
+    const std::vector<ColoredPoint> cloud = slam.StaticMapCloud();
+    summary.map_cloud_points = cloud.size();
+    const auto path = results.Stage("map.ply");
+    std::ofstream out(path, std::ios::binary);
+    WritePly(out, cloud,
+             {fmt::format("sdoslam {} static map, mode {}, world frame = first camera",
+                          SDOSLAM_VERSION, ToString(run.mode))});
+    out.close();
+    if (!out) throw IoError(path.string() + ": cannot write");
+  }
   results.Commit(summary.interrupted ? "interrupted" : "complete",
                  {{"mode", ToString(run.mode)},
                   {"dataset", std::filesystem::absolute(run.dataset).lexically_normal().string()},

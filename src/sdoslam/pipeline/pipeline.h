@@ -132,6 +132,9 @@ struct RunOptions {
   bool save_overlays = false;          // out/overlays/<rgb name>.png
   std::vector<size_t> overlay_frames;  // with save_overlays: only these frame indices (empty: all)
   bool save_masks = false;  // out/masks/<rgb name>.png (label image) and out/features.csv
+  // out/map.ply: the static map as a coloured point cloud at the end of the run
+  // (System::StaticMapCloud).
+  bool save_map = false;
   // Called after each frame is tracked, e.g. to look at the map as it grows (with a mapping
   // thread, the map may be changing: read it under your own care, or run sequentially).
   std::function<void(const TrackingResult& result, const System& slam)> after_frame;
@@ -161,6 +164,7 @@ struct RunSummary {
   bool interrupted = false;
   size_t tracked = 0, lost = 0, not_initialized = 0;
   size_t keyframes = 0, map_points = 0;
+  size_t map_cloud_points = 0;             // points written to map.ply (save_map)
   double median_frame_ms = 0;              // features + tracking
   double median_front_end_ms = 0;          // the dynamic front end (0 in conventional mode)
   FrontEndTiming median_front_end_stages;  // each stage's own median
@@ -183,7 +187,7 @@ struct RunSummary {
 
 // Runs SLAM over the sequence and writes CameraTrajectory.txt, KeyFrameTrajectory.txt,
 // config.yaml (resolved: it reruns the run), frames.csv (per-frame log) and, when asked, masks/,
-// features.csv and overlays/ into `out` as one result set with its manifest.json (see
+// features.csv, overlays/ and map.ply into `out` as one result set with its manifest.json (see
 // io/result_set.h): an earlier set there is replaced as a whole or not at all. Throws Error for
 // bad inputs and IoError for an unwritable `out` before the first frame, and Error when the first
 // 30 frames cannot start the map (too little depth).

@@ -24,14 +24,18 @@ BowVector KeyFramePlaces::Describe(const Frame& frame, FeatureVector* features) 
   return bow;
 }
 
-void KeyFramePlaces::Add(const KeyFrame* keyframe, const BowVector& bow) {
+void KeyFramePlaces::Add(const KeyFrame* keyframe, const BowVector& bow, FeatureVector features) {
   index_.Add(keyframe->id, bow);
-  bows_[keyframe->id] = bow;
+  if (features.empty()) {
+    features_.erase(keyframe->id);
+  } else {
+    features_[keyframe->id] = std::move(features);
+  }
 }
 
-const BowVector* KeyFramePlaces::Find(uint64_t keyframe_id) const {
-  const auto it = bows_.find(keyframe_id);
-  return it == bows_.end() ? nullptr : &it->second;
+const FeatureVector* KeyFramePlaces::Features(uint64_t keyframe_id) const {
+  const auto it = features_.find(keyframe_id);
+  return it == features_.end() ? nullptr : &it->second;
 }
 
 std::vector<PlaceIndex::Candidate> KeyFramePlaces::Query(
@@ -50,7 +54,7 @@ std::vector<PlaceIndex::Candidate> KeyFramePlaces::Query(
   });
   for (uint64_t id : culled) {
     index_.Erase(id);
-    bows_.erase(id);
+    features_.erase(id);
   }
   return candidates;
 }

@@ -21,6 +21,11 @@ class PlaceIndex {
   void Erase(uint64_t id);  // no-op for unknown ids
   size_t size() const { return bows_.size(); }
   bool Contains(uint64_t id) const { return bows_.count(id) > 0; }
+  // The bag of words of keyframe `id`, or nullptr when it is not in the index.
+  const BowVector* Find(uint64_t id) const {
+    const auto it = bows_.find(id);
+    return it == bows_.end() ? nullptr : &it->second;
+  }
 
   struct Candidate {
     uint64_t id;

@@ -89,6 +89,9 @@ TEST(PlaceIndex, EraseAndReplace) {
   EXPECT_EQ(index.size(), 1u);
   EXPECT_TRUE(index.Query(Bag({1, 2, 3}), 10).empty());
   EXPECT_EQ(Ids(index.Query(Bag({8}), 10)), (std::vector<uint64_t>{2}));
+  ASSERT_NE(index.Find(2), nullptr);
+  EXPECT_EQ(*index.Find(2), Bag({7, 8}));
+  EXPECT_EQ(index.Find(1), nullptr);
   index.Erase(2);
   EXPECT_EQ(index.size(), 0u);
   EXPECT_TRUE(index.Query(Bag({7, 8}), 10).empty());

@@ -4,6 +4,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <chrono>
+#include <cmath>
 #include <opencv2/imgproc.hpp>
 #include <optional>
 
@@ -351,6 +352,34 @@ Trajectory System::KeyFrameTrajectory() const {
     if (!kf->bad) out.push_back({kf->frame.timestamp, kf->pose().inverse()});
   }
   return out;
+}
+
+std::vector<ColoredPoint> System::StaticMapCloud(int min_observations) const {
+  std::lock_guard<std::mutex> lock(map_mutex_);
+  std::vector<ColoredPoint> cloud;
+  for (const auto& [id, point] : map_->points()) {
+    if (point->bad || point->inconsistent > 0 ||
+        static_cast<int>(point->observations.size()) < min_observations) {
+      continue;
+    }
+    Eigen::Vector3d bgr_sum = Eigen::Vector3d::Zero();
+    int seen = 0;
+    for (const auto& [kf_id, observation] : point->observations) {
+      const auto& [keyframe, feature] = observation;
+      const auto& colors = keyframe->frame.colors;
+      if (keyframe->bad || feature < 0 || static_cast<size_t>(feature) >= colors.size()) continue;
+      const cv::Vec3b& c = colors[static_cast<size_t>(feature)];
+      bgr_sum += Eigen::Vector3d(c[0], c[1], c[2]);
+      ++seen;
+    }
+    ColoredPoint p;
+    p.position = point->position.cast<float>();
+    const Eigen::Vector3d bgr =
+        seen > 0 ? Eigen::Vector3d(bgr_sum / seen) : Eigen::Vector3d(128, 128, 128);
+    for (int k = 0; k < 3; ++k) p.rgb[k] = static_cast<uint8_t>(std::lround(bgr[2 - k]));
+    cloud.push_back(p);
+  }
+  return cloud;
 }
 
 }  // namespace sdoslam

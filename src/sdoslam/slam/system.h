@@ -9,6 +9,7 @@
 
 #include "sdoslam/core/camera.h"
 #include "sdoslam/core/config.h"
+#include "sdoslam/io/point_cloud.h"
 #include "sdoslam/io/trajectory.h"
 #include "sdoslam/loop/loop_closer.h"
 #include "sdoslam/mapping/local_mapper.h"
@@ -101,6 +102,14 @@ class System {
   // Call after Shutdown() in threaded mode to include the last keyframes' refinement.
   Trajectory CameraTrajectory() const;
   Trajectory KeyFrameTrajectory() const;
+  // The static map as a coloured point cloud, in the world frame (the first camera's): every
+  // map point alive that at least `min_observations` keyframes saw, coloured with the mean of
+  // the image colours where they saw it. Points the consistency check counts as moved since
+  // their last consistent match are left out, as are (never made) points on features the front
+  // end labelled dynamic. The default of 2 leaves out points one keyframe made from its depth
+  // and nobody confirmed: they carry the depth sensor's noise and the last keyframe's unculled
+  // points. In id order, so a sequential run gives the same cloud every time.
+  std::vector<ColoredPoint> StaticMapCloud(int min_observations = 2) const;
   // Finishes local mapping of the queued keyframes and stops the mapping thread. Idempotent.
   void Shutdown();
   const Map& map() const { return *map_; }

@@ -135,6 +135,28 @@ std::vector<SceneObject> People(const Placement& p, int count) {
   return people;
 }
 
+// A person walks up to the camera from behind the scene, comes within 30 cm of the lens,
+// filling the view for about half a second (0.6 of the way through the play), turns and walks
+// away: a view with nothing static in it, then the scene back.
+SceneObject PersonFillingTheView(const Placement& p) {
+  constexpr double kPeriod = 5.0;  // there and back; the near end is reached at half of it
+  const double near_time = 0.6 * p.duration;
+  // Where the camera looks then, in the anchor frame (x right, y forward, z up): the person
+  // stops on its optical axis, 30 cm out, and comes from 2 m further along it.
+  const Isometry3d T_anchor_camera = p.T_world_anchor.inverse() * p.camera_at(near_time);
+  const Vector3d centre = T_anchor_camera.translation();
+  Vector3d forward = T_anchor_camera.linear().col(2);
+  forward.z() = 0;
+  forward.normalize();
+  // Feet 1.35 m below the camera: a camera held at chest height, so that the torso covers the
+  // view from up close.
+  const Vector3d near_feet = centre + 0.3 * forward - Vector3d(0, 0, 1.35);
+  const Vector3d far_feet = near_feet + std::max(2.0, 1.3 * p.focus.y()) * forward;
+  return InWorld(Person(3, "person_close", far_feet, near_feet, kPeriod, 0.0, {0.3f, 0.35f, 0.7f},
+                        {0.25f, 0.25f, 0.3f}, near_time - 0.5 * kPeriod),
+                 p.T_world_anchor);
+}
+
 void CheckScenarioName(const std::string& name) {
   const auto names = BackgroundScenarioNames();
   if (std::find(names.begin(), names.end(), name) != names.end()) return;
@@ -156,6 +178,8 @@ Scene MakeBackgroundScene(const std::string& name, const Placement& p) {
     scene.objects = People(p, 2);
   } else if (name == "mixed") {
     scene.objects = {People(p, 1)[0], SwingingBoxes(p)[0], CarriedBox(p)};
+  } else if (name == "person_fills_view") {
+    scene.objects = {PersonFillingTheView(p)};
   } else {
     CheckScenarioName(name);  // throws, listing the known names
   }
@@ -165,7 +189,7 @@ Scene MakeBackgroundScene(const std::string& name, const Placement& p) {
 }  // namespace
 
 std::vector<std::string> BackgroundScenarioNames() {
-  return {"static", "carried_box", "swinging_boxes", "people", "mixed"};
+  return {"static", "carried_box", "swinging_boxes", "people", "mixed", "person_fills_view"};
 }
 
 void BackgroundSynthOptions::Check() const {

@@ -35,7 +35,8 @@ struct BackgroundSynthOptions {
 // carried in front of the camera (about a quarter of the
 //   image), moving with it; swinging_boxes: two boxes swinging across the view (unknown class);
 // people: two people walking across the view (class person); mixed: the carried box, a swinging
-// box and a walking person.
+// box and a walking person; person_fills_view: a person walks up to the camera, fills the whole
+// view for about half a second (0.6 of the way through), turns and walks away.
 std::vector<std::string> BackgroundScenarioNames();
 
 // Writes the sequence to `out` in the layout of WriteSequence, with the recording's camera in

@@ -4,7 +4,7 @@
 #include <opencv2/calib3d.hpp>
 #include <set>
 
-#include "sdoslam/tracking/matcher.h"
+#include "sdoslam/matching/matcher.h"
 
 namespace sdoslam {
 

@@ -5,7 +5,7 @@
 #include <opencv2/core.hpp>
 #include <vector>
 
-#include "sdoslam/optim/residuals.h"
+#include "sdoslam/core/geometry.h"
 
 namespace sdoslam {
 

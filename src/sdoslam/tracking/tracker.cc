@@ -2,11 +2,11 @@
 
 #include <algorithm>
 
+#include "sdoslam/matching/matcher.h"
 #include "sdoslam/optim/optimizer.h"
 #include "sdoslam/tracking/initializer.h"
 #include "sdoslam/tracking/keyframe_inserter.h"
 #include "sdoslam/tracking/local_map.h"
-#include "sdoslam/tracking/matcher.h"
 
 namespace sdoslam {
 

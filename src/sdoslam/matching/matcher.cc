@@ -1,8 +1,10 @@
-#include "sdoslam/tracking/matcher.h"
+#include "sdoslam/matching/matcher.h"
 
 #include <algorithm>
 #include <array>
 #include <cmath>
+
+#include "sdoslam/matching/best_two.h"
 
 namespace sdoslam {
 namespace {
@@ -50,12 +52,8 @@ bool ProjectIntoImage(const FrameGeometry& g, const Eigen::Isometry3d& T_camera_
   return g.InImage(*u, *v);
 }
 
-// Where a map point should appear in a camera: in the image, within the point's
-// scale-invariance range and seen from less than 60° off its mean viewing direction.
-struct PredictedView {
-  Eigen::Vector3d p;  // camera frame
-  double u, v, distance, view_cos;
-};
+}  // namespace
+
 bool PredictInView(const FrameGeometry& g, const Eigen::Isometry3d& T_camera_world,
                    const Eigen::Vector3d& centre, const MapPoint& point, PredictedView* view) {
   if (!ProjectIntoImage(g, T_camera_world, point.position, &view->p, &view->u, &view->v))
@@ -67,8 +65,6 @@ bool PredictInView(const FrameGeometry& g, const Eigen::Isometry3d& T_camera_wor
   view->view_cos = ray.dot(point.normal) / view->distance;
   return view->view_cos >= 0.5;
 }
-
-}  // namespace
 
 int SearchByProjection(Frame& current, const Frame& last, double radius) {
   const FrameGeometry& g = *current.geometry;
@@ -84,7 +80,7 @@ int SearchByProjection(Frame& current, const Frame& last, double radius) {
     const int level = last.keypoints[i].octave;
     const auto candidates = current.FeaturesInArea(
         u, v, radius * g.scale[static_cast<size_t>(level)], std::max(0, level - 1), level + 1);
-    int best = 256, best_index = -1;
+    BestTwo nearest;
     for (int j : candidates) {
       const MapPoint* existing = current.map_points[static_cast<size_t>(j)];
       if (existing != nullptr && existing->found > 0 && !existing->bad) continue;
@@ -95,17 +91,14 @@ int SearchByProjection(Frame& current, const Frame& last, double radius) {
             radius * g.scale[static_cast<size_t>(level)])
           continue;
       }
-      const int d =
-          DescriptorDistance(point->descriptor.ptr<uint8_t>(), current.descriptors.ptr<uint8_t>(j));
-      if (d < best) {
-        best = d;
-        best_index = j;
-      }
+      nearest.Add(
+          DescriptorDistance(point->descriptor.ptr<uint8_t>(), current.descriptors.ptr<uint8_t>(j)),
+          j);
     }
-    if (best_index >= 0 && best <= kMatchLoose) {
-      current.map_points[static_cast<size_t>(best_index)] = point;
-      histogram.Add(last.keypoints[i].angle,
-                    current.keypoints[static_cast<size_t>(best_index)].angle, best_index);
+    if (nearest.found() && nearest.best <= kMatchLoose) {
+      const int j = nearest.best_index;
+      current.map_points[static_cast<size_t>(j)] = point;
+      histogram.Add(last.keypoints[i].angle, current.keypoints[static_cast<size_t>(j)].angle, j);
       ++matches;
     }
   }
@@ -132,7 +125,7 @@ int SearchLocalPoints(Frame& current, const std::vector<MapPoint*>& points, uint
     const double radius =
         radius_factor * (view_cos > 0.998 ? 2.5 : 4.0) * g.scale[static_cast<size_t>(level)];
     const auto candidates = current.FeaturesInArea(u, v, radius, level - 1, level);
-    int best = 256, second = 256, best_index = -1, best_level = -1, second_level = -1;
+    BestTwo nearest;
     for (int j : candidates) {
       const MapPoint* existing = current.map_points[static_cast<size_t>(j)];
       if (existing != nullptr && !existing->bad && existing->observations.size() > 0) continue;
@@ -140,56 +133,72 @@ int SearchLocalPoints(Frame& current, const std::vector<MapPoint*>& points, uint
         const double ur = u - g.intrinsics.bf / p.z();
         if (std::abs(ur - current.right_u[static_cast<size_t>(j)]) > radius) continue;
       }
-      const int d =
-          DescriptorDistance(point->descriptor.ptr<uint8_t>(), current.descriptors.ptr<uint8_t>(j));
-      const int j_level = current.keypoints[static_cast<size_t>(j)].octave;
-      if (d < best) {
-        second = best;
-        second_level = best_level;
-        best = d;
-        best_level = j_level;
-        best_index = j;
-      } else if (d < second) {
-        second = d;
-        second_level = j_level;
-      }
+      nearest.Add(
+          DescriptorDistance(point->descriptor.ptr<uint8_t>(), current.descriptors.ptr<uint8_t>(j)),
+          j);
     }
-    if (best_index < 0 || best > kMatchLoose) continue;
-    if (best_level == second_level && best > 0.8 * second) continue;  // ambiguous
-    current.map_points[static_cast<size_t>(best_index)] = point;
+    if (!nearest.found() || nearest.best > kMatchLoose) continue;
+    // Ambiguous only when the runner-up is on the same pyramid level (-1: there is none).
+    const auto level_of = [&](int j) {
+      return j < 0 ? -1 : current.keypoints[static_cast<size_t>(j)].octave;
+    };
+    if (level_of(nearest.best_index) == level_of(nearest.second_index) && nearest.Ambiguous(0.8))
+      continue;
+    current.map_points[static_cast<size_t>(nearest.best_index)] = point;
     point->last_seen_frame = frame_stamp;
     ++matches;
   }
   return matches;
 }
 
-int SearchByDescriptor(Frame& current, const KeyFrame& keyframe) {
+int SearchByDescriptor(Frame& current, const KeyFrame& keyframe,
+                       const FeatureVector* keyframe_words, const FeatureVector* current_words) {
   int matches = 0;
   RotationHistogram histogram;
   std::vector<int> best_for_feature(current.size(), 256);
-  for (size_t i = 0; i < keyframe.frame.size(); ++i) {
+  // Keyframe feature i against the frame's features `candidates` (nullptr: all of them).
+  auto match = [&](size_t i, const std::vector<int>* candidates) {
     MapPoint* point = keyframe.frame.map_points[i];
-    if (point == nullptr || point->bad) continue;
-    int best = 256, second = 256, best_index = -1;
+    if (point == nullptr || point->bad) return;
+    BestTwo nearest;
     const uint8_t* d_kf = keyframe.frame.descriptors.ptr<uint8_t>(static_cast<int>(i));
-    for (size_t j = 0; j < current.size(); ++j) {
-      if (!current.IsStatic(static_cast<int>(j))) continue;
-      const int d = DescriptorDistance(d_kf, current.descriptors.ptr<uint8_t>(static_cast<int>(j)));
-      if (d < best) {
-        second = best;
-        best = d;
-        best_index = static_cast<int>(j);
-      } else if (d < second) {
-        second = d;
-      }
+    auto consider = [&](int j) {
+      if (!current.IsStatic(j)) return;
+      nearest.Add(DescriptorDistance(d_kf, current.descriptors.ptr<uint8_t>(j)), j);
+    };
+    if (candidates == nullptr) {
+      for (size_t j = 0; j < current.size(); ++j) consider(static_cast<int>(j));
+    } else {
+      for (int j : *candidates) consider(j);
     }
-    if (best_index < 0 || best > kMatchStrict || best > 0.7 * second) continue;
-    if (best >= best_for_feature[static_cast<size_t>(best_index)]) continue;
+    if (!nearest.found() || nearest.best > kMatchStrict || nearest.Ambiguous(0.7)) return;
+    const int best = nearest.best, best_index = nearest.best_index;
+    if (best >= best_for_feature[static_cast<size_t>(best_index)]) return;
     if (current.map_points[static_cast<size_t>(best_index)] == nullptr) ++matches;
     best_for_feature[static_cast<size_t>(best_index)] = best;
     current.map_points[static_cast<size_t>(best_index)] = point;
     histogram.Add(keyframe.frame.keypoints[i].angle,
                   current.keypoints[static_cast<size_t>(best_index)].angle, best_index);
+  };
+  if (keyframe_words != nullptr && current_words != nullptr) {
+    // Both maps are ordered by node: walk them side by side.
+    auto a = keyframe_words->begin(), b = current_words->begin();
+    while (a != keyframe_words->end() && b != current_words->end()) {
+      if (a->first < b->first) {
+        ++a;
+      } else if (b->first < a->first) {
+        ++b;
+      } else {
+        for (int i : a->second) {
+          if (i >= 0 && static_cast<size_t>(i) < keyframe.frame.size())
+            match(static_cast<size_t>(i), &b->second);
+        }
+        ++a;
+        ++b;
+      }
+    }
+  } else {
+    for (size_t i = 0; i < keyframe.frame.size(); ++i) match(i, nullptr);
   }
   for (int j : histogram.Rejected()) {
     if (current.map_points[static_cast<size_t>(j)] != nullptr) --matches;
@@ -197,56 +206,4 @@ int SearchByDescriptor(Frame& current, const KeyFrame& keyframe) {
   }
   return matches;
 }
-
-int Fuse(Map& map, KeyFrame* kf, const std::vector<MapPoint*>& points) {
-  const FrameGeometry& g = *kf->frame.geometry;
-  const Eigen::Isometry3d& T = kf->pose();
-  const Eigen::Vector3d centre = kf->CameraCentre();
-  int fused = 0;
-  for (MapPoint* point : points) {
-    if (point == nullptr || point->bad || point->observations.count(kf->id)) continue;
-    PredictedView view;
-    if (!PredictInView(g, T, centre, *point, &view)) continue;
-    const auto& [p, u, v, distance, view_cos] = view;
-    const int level = point->PredictLevel(distance, g);
-    const double radius = 3.0 * g.scale[static_cast<size_t>(level)];
-    int best = 256, best_index = -1;
-    for (int j : kf->frame.FeaturesInArea(u, v, radius)) {
-      const size_t k = static_cast<size_t>(j);
-      const int j_level = kf->frame.keypoints[k].octave;
-      if (j_level < level - 1 || j_level > level) continue;
-      // Reprojection error gate (χ² on the whitened error, as in ORB-SLAM's Fuse).
-      const double du = u - kf->frame.undistorted[k].x, dv = v - kf->frame.undistorted[k].y;
-      double e2 = du * du + dv * dv;
-      double threshold = kChi2Mono;
-      if (kf->frame.right_u[k] >= 0) {
-        const double dr = u - g.intrinsics.bf / p.z() - kf->frame.right_u[k];
-        e2 += dr * dr;
-        threshold = kChi2Stereo;
-      }
-      if (e2 * g.inv_sigma2[static_cast<size_t>(j_level)] > threshold) continue;
-      const int d = DescriptorDistance(point->descriptor.ptr<uint8_t>(),
-                                       kf->frame.descriptors.ptr<uint8_t>(j));
-      if (d < best) {
-        best = d;
-        best_index = j;
-      }
-    }
-    if (best_index < 0 || best > kMatchStrict) continue;
-    MapPoint* existing = kf->frame.map_points[static_cast<size_t>(best_index)];
-    if (existing != nullptr && !existing->bad) {
-      if (existing->observations.size() > point->observations.size()) {
-        map.Replace(point, existing);
-      } else {
-        map.Replace(existing, point);
-      }
-    } else {
-      map.AddObservation(point, kf, best_index);
-      point->UpdateFromObservations();
-    }
-    ++fused;
-  }
-  return fused;
-}
-
 }  // namespace sdoslam

@@ -1,7 +1,9 @@
-#include "sdoslam/tracking/matcher.h"
+#include "sdoslam/matching/matcher.h"
 
 #include <gtest/gtest.h>
 
+#include "sdoslam/optim/optimizer.h"
+#include "sdoslam/place/default_vocabulary.h"
 #include "sdoslam/synth/renderer.h"
 #include "sdoslam/synth/scenarios.h"
 #include "sdoslam/synth/sensor.h"
@@ -97,6 +99,39 @@ TEST_F(MatcherTest, ProjectionSearchFindsCorrectMatches) {
   displaced.T_camera_world.translation() += Eigen::Vector3d(0.3, 0, 0);
   const int wrong = SearchByProjection(displaced, keyframe_->frame, 15.0);
   EXPECT_LT(wrong, n / 3);
+}
+
+// Vocabulary-guided (the built-in vocabulary's direct indexes): a keyframe feature meets only
+// the frame's features under its node, yet most of the brute-force matches are found, as
+// correct; with direct indexes that share no node nothing is compared at all.
+TEST_F(MatcherTest, VocabularyGuidedDescriptorSearchFindsMostMatchesComparingFew) {
+  const Vocabulary& vocabulary = DefaultVocabulary();
+  BowVector bow;
+  FeatureVector keyframe_words, current_words;
+  vocabulary.Transform(keyframe_->frame.descriptors, &bow, &keyframe_words);
+  vocabulary.Transform(frames_[1].descriptors, &bow, &current_words);
+  size_t compared = 0;
+  for (const auto& [node, features] : keyframe_words) {
+    const auto it = current_words.find(node);
+    if (it != current_words.end()) compared += features.size() * it->second.size();
+  }
+  const size_t all_pairs = keyframe_->frame.size() * frames_[1].size();
+  EXPECT_LT(compared, all_pairs / 20) << "pairs compared of " << all_pairs;
+
+  Frame brute = frames_[1], guided = frames_[1];
+  brute.T_camera_world = guided.T_camera_world = Eigen::Isometry3d::Identity();
+  const int n_brute = SearchByDescriptor(brute, *keyframe_);
+  const int n_guided = SearchByDescriptor(guided, *keyframe_, &keyframe_words, &current_words);
+  std::cout << "descriptor search: brute force " << n_brute << " matches, vocabulary-guided "
+            << n_guided << " comparing " << compared << " of " << all_pairs << " pairs\n";
+  EXPECT_GE(n_guided, n_brute / 2);
+  guided.T_camera_world = frames_[1].T_camera_world;
+  int matches = 0;
+  EXPECT_GT(CorrectFraction(guided, &matches), 0.9);
+
+  Frame none = frames_[1];
+  const FeatureVector elsewhere = {{0xFFFFFFFFu, {0, 1, 2}}};
+  EXPECT_EQ(SearchByDescriptor(none, *keyframe_, &keyframe_words, &elsewhere), 0);
 }
 
 TEST_F(MatcherTest, DescriptorSearchNeedsNoPoseAndLocalSearchAddsNoDuplicates) {
