@@ -70,8 +70,11 @@ bool Relocalizer::Relocalize(Frame& frame, const Prior& prior, KeyFrame** refere
       ++recent;
     }
   }
-  if (places_ != nullptr && places_->size() > 0 && options_.relocalization_place_candidates > 0) {
-    const BowVector bow = places_->Describe(frame);
+  // The frame's words: for place recognition and vocabulary-guided matching.
+  const bool have_places = places_ != nullptr && places_->size() > 0;
+  FeatureVector frame_words;
+  const BowVector bow = have_places ? places_->Describe(frame, &frame_words) : BowVector{};
+  if (have_places && options_.relocalization_place_candidates > 0) {
     for (const PlaceIndex::Candidate& c : places_->Query(
              *map_, bow, static_cast<size_t>(options_.relocalization_place_candidates))) {
       add(map_->keyframes().at(c.id).get());
@@ -81,7 +84,10 @@ bool Relocalizer::Relocalize(Frame& frame, const Prior& prior, KeyFrame** refere
   const cv::Matx33d K(k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1);
   for (KeyFrame* kf : candidates) {
     std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
-    if (SearchByDescriptor(frame, *kf) < 15) continue;
+    // Vocabulary-guided where the keyframe is among the places (see the matcher).
+    const FeatureVector* kf_words = have_places ? places_->Features(kf->id) : nullptr;
+    if (SearchByDescriptor(frame, *kf, kf_words, kf_words != nullptr ? &frame_words : nullptr) < 15)
+      continue;
     // The pose from the matches alone (the last pose may be far off): PnP in RANSAC on the
     // undistorted keypoints. OpenCV's RANSAC draws from a fixed seed: runs stay repeatable.
     std::vector<cv::Point3d> object;

@@ -238,6 +238,11 @@ bool Tracker::TrackWithMotionModel(Frame& frame) {
 
 bool Tracker::TrackReferenceKeyFrame(Frame& frame) {
   std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
+  // Brute force, not vocabulary-guided as ORB-SLAM does here: guided matching finds about two
+  // thirds of the matches, and with it five sequences came out 0.1-0.7 mm worse (real-background
+  // carried_box 5.5 -> 6.2 mm, walking_xyz 300 frames 6.3 -> 6.9). One keyframe's brute-force
+  // search (10^6 descriptor distances) costs a few milliseconds, and only frames the motion
+  // model misses pay it.
   const int matches = SearchByDescriptor(frame, *reference_);
   if (matches < 15) return false;
   return OptimizeAndCount(frame) >= 10;
