@@ -4,9 +4,7 @@
 
 #include <set>
 
-#include "sdoslam/synth/renderer.h"
-#include "sdoslam/synth/scenarios.h"
-#include "sdoslam/synth/sensor.h"
+#include "sdoslam/testing/room_frames.h"
 
 namespace sdoslam {
 namespace {
@@ -17,36 +15,13 @@ namespace {
 class FuseTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    const Camera camera(synth::SyntheticCamera());
-    extractor_ = std::make_unique<OrbExtractor>(OrbOptions{});
-    geometry_ = std::make_shared<FrameGeometry>(camera, *extractor_, 40.0, 3.0);
-    const synth::Scenario scenario =
-        synth::MakeScenario("static_room", 10.0, synth::CameraMotion::kHalfsphere);
     for (double t : {1.0, 1.1, 1.2}) {
-      const Eigen::Isometry3d T_world_camera = synth::CameraPoseAt(scenario.motion, t, 10.0);
-      const synth::RenderedView view = synth::Render(scenario.scene, t, T_world_camera, camera);
-      const synth::SensorFrame sensed =
-          synth::Sense(view, camera.options(), {}, 1, static_cast<int>(t * 10));
-      cv::Mat depth;
-      sensed.depth.convertTo(depth, CV_32F, 1.0 / 5000.0);
-      Frame frame(keyframes_.size(), t, sensed.bgr, depth, geometry_, *extractor_);
-      frame.T_camera_world = T_world_camera.inverse();
-      keyframes_.push_back(map_.AddKeyFrame(frame));
+      keyframes_.push_back(
+          map_.AddKeyFrame(room_.MakeFrame(keyframes_.size(), t, static_cast<int>(t * 10))));
     }
   }
 
-  // Points from the keyframe's depth, one per feature with depth.
-  std::vector<MapPoint*> AddDepthPoints(KeyFrame* kf) {
-    std::vector<MapPoint*> points;
-    for (size_t i = 0; i < kf->frame.size(); ++i) {
-      if (!kf->frame.HasDepth(static_cast<int>(i))) continue;
-      MapPoint* p = map_.AddMapPoint(kf->frame.UnprojectWorld(static_cast<int>(i)), kf);
-      map_.AddObservation(p, kf, static_cast<int>(i));
-      p->UpdateFromObservations();
-      points.push_back(p);
-    }
-    return points;
-  }
+  std::vector<MapPoint*> AddDepthPoints(KeyFrame* kf) { return testing::AddDepthPoints(map_, kf); }
 
   // Of the observations of `points` in `kf` on features with depth (`*total`), those whose
   // feature's own back-projection agrees with the point within what the depth noise of both
@@ -68,8 +43,7 @@ class FuseTest : public ::testing::Test {
     return correct;
   }
 
-  std::unique_ptr<OrbExtractor> extractor_;
-  std::shared_ptr<FrameGeometry> geometry_;
+  testing::RoomFrames room_;
   Map map_;
   std::vector<KeyFrame*> keyframes_;
 };

@@ -4,9 +4,7 @@
 
 #include "sdoslam/optim/optimizer.h"
 #include "sdoslam/place/default_vocabulary.h"
-#include "sdoslam/synth/renderer.h"
-#include "sdoslam/synth/scenarios.h"
-#include "sdoslam/synth/sensor.h"
+#include "sdoslam/testing/room_frames.h"
 
 namespace sdoslam {
 namespace {
@@ -15,30 +13,11 @@ namespace {
 class MatcherTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    const Camera camera(synth::SyntheticCamera());
-    extractor_ = std::make_unique<OrbExtractor>(OrbOptions{});
-    geometry_ = std::make_shared<FrameGeometry>(camera, *extractor_, 40.0, 3.0);
-    const synth::Scenario scenario =
-        synth::MakeScenario("static_room", 10.0, synth::CameraMotion::kHalfsphere);
-    for (double t : {1.0, 1.2}) {
-      const Eigen::Isometry3d T_world_camera = synth::CameraPoseAt(scenario.motion, t, 10.0);
-      const synth::RenderedView view = synth::Render(scenario.scene, t, T_world_camera, camera);
-      const synth::SensorFrame sensed =
-          synth::Sense(view, camera.options(), {}, 1, static_cast<int>(t * 10));
-      cv::Mat depth;
-      sensed.depth.convertTo(depth, CV_32F, 1.0 / 5000.0);
-      frames_.emplace_back(frames_.size(), t, sensed.bgr, depth, geometry_, *extractor_);
-      frames_.back().T_camera_world = T_world_camera.inverse();
-    }
+    for (double t : {1.0, 1.2})
+      frames_.push_back(room_.MakeFrame(frames_.size(), t, static_cast<int>(t * 10)));
     // The first frame becomes a keyframe with points from its depth.
     keyframe_ = map_.AddKeyFrame(frames_[0]);
-    for (size_t i = 0; i < keyframe_->frame.size(); ++i) {
-      if (!keyframe_->frame.HasDepth(static_cast<int>(i))) continue;
-      MapPoint* p =
-          map_.AddMapPoint(keyframe_->frame.UnprojectWorld(static_cast<int>(i)), keyframe_);
-      map_.AddObservation(p, keyframe_, static_cast<int>(i));
-      p->UpdateFromObservations();
-    }
+    testing::AddDepthPoints(map_, keyframe_);
   }
 
   // Fraction of matches whose map point agrees with the matched feature's own back-projection
@@ -59,8 +38,7 @@ class MatcherTest : public ::testing::Test {
     return total > 0 ? static_cast<double>(correct) / total : 0.0;
   }
 
-  std::unique_ptr<OrbExtractor> extractor_;
-  std::shared_ptr<FrameGeometry> geometry_;
+  testing::RoomFrames room_;
   std::vector<Frame> frames_;
   Map map_;
   KeyFrame* keyframe_ = nullptr;
@@ -86,7 +64,7 @@ TEST_F(MatcherTest, ProjectionSearchFindsCorrectMatches) {
     observations.push_back(current.Observation(static_cast<int>(i)));
   }
   const PoseOptimizationResult optimised =
-      OptimizePose(geometry_->intrinsics, current.T_camera_world, points, observations);
+      OptimizePose(room_.geometry()->intrinsics, current.T_camera_world, points, observations);
   current.T_camera_world = truth;
   int with_depth = 0;
   EXPECT_GT(CorrectFraction(current, &with_depth), 0.8);

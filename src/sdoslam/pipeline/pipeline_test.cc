@@ -547,12 +547,14 @@ struct RealBackgroundResult {
 
 // A scenario rendered into the real desk clip, played forward and back (99 frames), run in the
 // given modes; nullopt when the shared data is absent.
-std::optional<RealBackgroundResult> RunOverTheRealDesk(const std::string& scenario,
-                                                       const std::vector<RunMode>& modes,
-                                                       uint32_t seed = 1) {
+// `scenario` rendered into the real desk clip played forward and back (99 frames), written to
+// dir/seq; returns the options it was written with (camera included), or nullopt when the
+// shared data is absent.
+std::optional<synth::BackgroundSynthOptions> WriteDeskPlay(const std::string& scenario,
+                                                           const testing::TempDir& dir,
+                                                           uint32_t seed = 1) {
   const auto desk = testing::SharedDir() / "data" / "tum_fr2_desk_50";
   if (!std::filesystem::is_directory(desk)) return std::nullopt;
-  testing::TempDir dir;
   synth::BackgroundSynthOptions options;
   options.background = desk;
   options.camera = LoadCameraConfig(testing::SourceDir() / "configs" / "tum_fr2.yaml");
@@ -560,6 +562,16 @@ std::optional<RealBackgroundResult> RunOverTheRealDesk(const std::string& scenar
   options.forward_backward = true;
   options.seed = seed;
   synth::WriteBackgroundSequence(options, dir / "seq");
+  return options;
+}
+
+std::optional<RealBackgroundResult> RunOverTheRealDesk(const std::string& scenario,
+                                                       const std::vector<RunMode>& modes,
+                                                       uint32_t seed = 1) {
+  testing::TempDir dir;
+  const auto written = WriteDeskPlay(scenario, dir, seed);
+  if (!written) return std::nullopt;
+  const synth::BackgroundSynthOptions& options = *written;
   RunOptions run;
   run.dataset = dir / "seq";
   run.camera = options.camera;
@@ -697,15 +709,10 @@ GapOutcome RunThroughAGap(const std::filesystem::path& sequence, const CameraOpt
 // lens): they are lost, tracking is back within 5 frames of the view's return, on keyframes of
 // the way out, and the frames after are as accurate as those before.
 TEST(PipelineRealBackground, TenBlackFramesOnTheWayBackAreLostAndTrackingReturns) {
-  const auto desk = testing::SharedDir() / "data" / "tum_fr2_desk_50";
-  if (!std::filesystem::is_directory(desk)) GTEST_SKIP() << desk << " absent";
   testing::TempDir dir;
-  synth::BackgroundSynthOptions options;
-  options.background = desk;
-  options.camera = LoadCameraConfig(testing::SourceDir() / "configs" / "tum_fr2.yaml");
-  options.scenario = "static";
-  options.forward_backward = true;
-  synth::WriteBackgroundSequence(options, dir / "seq");
+  const auto written = WriteDeskPlay("static", dir);
+  if (!written) GTEST_SKIP() << "tum_fr2_desk_50 absent";
+  const synth::BackgroundSynthOptions& options = *written;
   const RgbdDataset dataset(dir / "seq", options.camera);
   ASSERT_EQ(dataset.size(), 99u);
   constexpr size_t kGapStart = 60, kGapEnd = 70;
@@ -735,15 +742,10 @@ TEST(PipelineRealBackground, TenBlackFramesOnTheWayBackAreLostAndTrackingReturns
 // and drifted 0.4 m with it (69 mm) before large segments the flow-carried memory covers
 // stayed dynamic (12 mm; the oracle 7 mm).
 TEST(PipelineRealBackground, APersonWhoFillsTheViewIsNotFollowed) {
-  const auto desk = testing::SharedDir() / "data" / "tum_fr2_desk_50";
-  if (!std::filesystem::is_directory(desk)) GTEST_SKIP() << desk << " absent";
   testing::TempDir dir;
-  synth::BackgroundSynthOptions options;
-  options.background = desk;
-  options.camera = LoadCameraConfig(testing::SourceDir() / "configs" / "tum_fr2.yaml");
-  options.scenario = "person_fills_view";
-  options.forward_backward = true;
-  synth::WriteBackgroundSequence(options, dir / "seq");
+  const auto written = WriteDeskPlay("person_fills_view", dir);
+  if (!written) GTEST_SKIP() << "tum_fr2_desk_50 absent";
+  const synth::BackgroundSynthOptions& options = *written;
   const RgbdDataset dataset(dir / "seq", options.camera);
   std::vector<double> coverage;
   for (const RgbdFrameEntry& e : dataset.entries()) {

@@ -2,9 +2,7 @@
 
 #include <gtest/gtest.h>
 
-#include "sdoslam/synth/renderer.h"
-#include "sdoslam/synth/scenarios.h"
-#include "sdoslam/synth/sensor.h"
+#include "sdoslam/testing/room_frames.h"
 
 namespace sdoslam {
 namespace {
@@ -12,26 +10,18 @@ namespace {
 class InitializerTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    const Camera camera(synth::SyntheticCamera());
-    extractor_ = std::make_unique<OrbExtractor>(OrbOptions{});
-    geometry_ = std::make_shared<FrameGeometry>(camera, *extractor_, 40.0, 3.0);
-    const synth::Scenario scenario =
-        synth::MakeScenario("static_room", 10.0, synth::CameraMotion::kHalfsphere);
-    const Eigen::Isometry3d T_world_camera = synth::CameraPoseAt(scenario.motion, 1.0, 10.0);
-    const synth::RenderedView view = synth::Render(scenario.scene, 1.0, T_world_camera, camera);
-    const synth::SensorFrame sensed = synth::Sense(view, camera.options(), {}, 1, 0);
-    sensed.depth.convertTo(depth_, CV_32F, 1.0 / 5000.0);
-    bgr_ = sensed.bgr;
+    const testing::RoomFrames::View view = room_.Render(1.0, 0);
+    bgr_ = view.bgr;
+    depth_ = view.depth;
   }
 
   Frame MakeFrame(const cv::Mat& depth) const {
-    Frame frame(3, 0.1, bgr_, depth, geometry_, *extractor_);
+    Frame frame(3, 0.1, bgr_, depth, room_.geometry(), room_.extractor());
     frame.T_camera_world = synth::Pose({1, 2, 3});
     return frame;
   }
 
-  std::unique_ptr<OrbExtractor> extractor_;
-  std::shared_ptr<FrameGeometry> geometry_;
+  testing::RoomFrames room_;
   cv::Mat bgr_, depth_;
 };
 

@@ -2,9 +2,7 @@
 
 #include <gtest/gtest.h>
 
-#include "sdoslam/synth/renderer.h"
-#include "sdoslam/synth/scenarios.h"
-#include "sdoslam/synth/sensor.h"
+#include "sdoslam/testing/room_frames.h"
 
 namespace sdoslam {
 namespace {
@@ -14,18 +12,10 @@ namespace {
 class KeyFrameInserterTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    const Camera camera(synth::SyntheticCamera());
-    extractor_ = std::make_unique<OrbExtractor>(OrbOptions{});
-    geometry_ = std::make_shared<FrameGeometry>(camera, *extractor_, 40.0, 3.0);
-    const synth::Scenario scenario =
-        synth::MakeScenario("static_room", 10.0, synth::CameraMotion::kHalfsphere);
-    const Eigen::Isometry3d T_world_camera = synth::CameraPoseAt(scenario.motion, 1.0, 10.0);
-    const synth::RenderedView view = synth::Render(scenario.scene, 1.0, T_world_camera, camera);
-    const synth::SensorFrame sensed = synth::Sense(view, camera.options(), {}, 1, 0);
-    cv::Mat depth;
-    sensed.depth.convertTo(depth, CV_32F, 1.0 / 5000.0);
-    frame_ = std::make_unique<Frame>(40, 4.0, sensed.bgr, depth, geometry_, *extractor_);
-    frame_->T_camera_world = T_world_camera.inverse();
+    const testing::RoomFrames::View view = room_.Render(1.0, 0);
+    frame_ =
+        std::make_unique<Frame>(40, 4.0, view.bgr, view.depth, room_.geometry(), room_.extractor());
+    frame_->T_camera_world = view.T_world_camera.inverse();
     for (size_t i = 0; i < frame_->size(); ++i) {
       if (IsClose(i)) close_.push_back(i);
     }
@@ -33,7 +23,8 @@ class KeyFrameInserterTest : public ::testing::Test {
   }
 
   bool IsClose(size_t i) const {
-    return frame_->HasDepth(static_cast<int>(i)) && frame_->depth[i] <= geometry_->close_depth;
+    return frame_->HasDepth(static_cast<int>(i)) &&
+           frame_->depth[i] <= room_.geometry()->close_depth;
   }
   // Every close feature matched (to a placeholder: the decision only looks at whether there is
   // a match), all others not.
@@ -50,8 +41,7 @@ class KeyFrameInserterTest : public ::testing::Test {
             .mapping_idle = false};
   }
 
-  std::unique_ptr<OrbExtractor> extractor_;
-  std::shared_ptr<FrameGeometry> geometry_;
+  testing::RoomFrames room_;
   std::unique_ptr<Frame> frame_;
   std::vector<size_t> close_;
   Map other_map_;

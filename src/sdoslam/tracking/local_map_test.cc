@@ -2,9 +2,7 @@
 
 #include <gtest/gtest.h>
 
-#include "sdoslam/synth/renderer.h"
-#include "sdoslam/synth/scenarios.h"
-#include "sdoslam/synth/sensor.h"
+#include "sdoslam/testing/room_frames.h"
 
 namespace sdoslam {
 namespace {
@@ -13,17 +11,9 @@ namespace {
 class LocalMapTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    const Camera camera(synth::SyntheticCamera());
-    extractor_ = std::make_unique<OrbExtractor>(OrbOptions{});
-    geometry_ = std::make_shared<FrameGeometry>(camera, *extractor_, 40.0, 3.0);
-    const synth::Scenario scenario =
-        synth::MakeScenario("static_room", 10.0, synth::CameraMotion::kHalfsphere);
-    const Eigen::Isometry3d T_world_camera = synth::CameraPoseAt(scenario.motion, 1.0, 10.0);
-    const synth::RenderedView view = synth::Render(scenario.scene, 1.0, T_world_camera, camera);
-    const synth::SensorFrame sensed = synth::Sense(view, camera.options(), {}, 1, 0);
-    cv::Mat depth;
-    sensed.depth.convertTo(depth, CV_32F, 1.0 / 5000.0);
-    frame_ = std::make_unique<Frame>(7, 1.0, sensed.bgr, depth, geometry_, *extractor_);
+    const testing::RoomFrames::View view = room_.Render(1.0, 0);
+    frame_ =
+        std::make_unique<Frame>(7, 1.0, view.bgr, view.depth, room_.geometry(), room_.extractor());
     ASSERT_GE(frame_->size(), 10u);
   }
 
@@ -34,8 +24,7 @@ class LocalMapTest : public ::testing::Test {
     return p;
   }
 
-  std::unique_ptr<OrbExtractor> extractor_;
-  std::shared_ptr<FrameGeometry> geometry_;
+  testing::RoomFrames room_;
   std::unique_ptr<Frame> frame_;
   Map map_;
 };
