@@ -71,5 +71,55 @@ TEST(LocalMapper, TriangulatesFeaturesWithoutDepthOntoTheTrueSurface) {
   EXPECT_GT(on_surface, 0.9 * checked);
 }
 
+// Eight keyframes 4 cm apart in the rendered room, each tracked against the one before and
+// mapped with `options`; returns the last keyframe's mapping result.
+MappingResult MapEightViewsOfTheRoom(const LocalMapperOptions& options) {
+  const Camera camera(synth::SyntheticCamera());
+  const OrbExtractor extractor(OrbOptions{});
+  auto geometry = std::make_shared<FrameGeometry>(camera, extractor, 40.0, 3.0);
+  const synth::Scenario scenario =
+      synth::MakeScenario("static_room", 10.0, synth::CameraMotion::kXyz);
+  Map map;
+  LocalMapper mapper(&map, options);
+  KeyFrame* previous = nullptr;
+  MappingResult result;
+  for (int i = 0; i < 8; ++i) {
+    const double t = 0.12 * i;
+    const Eigen::Isometry3d T_world_camera = synth::CameraPoseAt(scenario.motion, t, 10.0);
+    const synth::RenderedView view = synth::Render(scenario.scene, t, T_world_camera, camera);
+    const synth::SensorFrame sensed = synth::Sense(view, camera.options(), {}, 3, i);
+    cv::Mat depth;
+    sensed.depth.convertTo(depth, CV_32F, 1.0 / 5000.0);
+    Frame frame(static_cast<uint64_t>(i), t, sensed.bgr, depth, geometry, extractor);
+    frame.T_camera_world = T_world_camera.inverse();
+    if (previous != nullptr) SearchByProjection(frame, previous->frame, 15.0);
+    KeyFrame* kf = map.AddKeyFrame(frame);
+    for (size_t f = 0; f < kf->frame.size(); ++f) {  // new points where depth is measured
+      if (kf->frame.map_points[f] != nullptr || !kf->frame.HasDepth(static_cast<int>(f))) continue;
+      MapPoint* p = map.AddMapPoint(kf->frame.UnprojectWorld(static_cast<int>(f)), kf);
+      map.AddObservation(p, kf, static_cast<int>(f));
+      p->UpdateFromObservations();
+    }
+    result = mapper.Process(kf);
+    previous = kf;
+  }
+  return result;
+}
+
+TEST(LocalMapper, TheLocalAdjustmentStaysWithinItsObservationBudget) {
+  const MappingResult unbounded = MapEightViewsOfTheRoom(LocalMapperOptions{});
+  ASSERT_EQ(unbounded.local_keyframes, 8);  // the whole small map is the window
+  ASSERT_GT(unbounded.ba.observations, 2000);
+  LocalMapperOptions budgeted;
+  budgeted.max_ba_observations = unbounded.ba.observations / 2;
+  const MappingResult bounded = MapEightViewsOfTheRoom(budgeted);
+  EXPECT_LE(bounded.ba.observations, budgeted.max_ba_observations);
+  EXPECT_GT(bounded.ba.observations, budgeted.max_ba_observations / 2);
+  EXPECT_LT(bounded.local_keyframes, 8);
+  // The neighbours the budget leaves out of the window are held fixed, not forgotten.
+  EXPECT_GE(bounded.fixed_keyframes, 1);
+  EXPECT_GT(bounded.ba.iterations, 0);
+}
+
 }  // namespace
 }  // namespace sdoslam

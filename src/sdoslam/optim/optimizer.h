@@ -39,6 +39,13 @@ struct BundleAdjustmentProblem {
   std::vector<Observation> observations;
 };
 
+// What one bundle adjustment cost: the mapping log records it per keyframe, so a cost that
+// grows over a long run can be traced to the problem's size or to the solver's iterations.
+struct BundleAdjustmentStats {
+  int observations = 0;  // residuals of the first pass
+  int iterations = 0;    // solver iterations, both passes
+};
+
 struct BundleAdjustmentOptions {
   int iterations = 5;          // first pass, all observations with Huber loss
   int refine_iterations = 10;  // second pass without the outliers of the first
@@ -49,6 +56,7 @@ struct BundleAdjustmentOptions {
 // deterministic.
 std::vector<bool> BundleAdjust(const PinholeIntrinsics& intrinsics,
                                BundleAdjustmentProblem* problem,
-                               const BundleAdjustmentOptions& options = {});
+                               const BundleAdjustmentOptions& options = {},
+                               BundleAdjustmentStats* stats = nullptr);
 
 }  // namespace sdoslam

@@ -60,6 +60,7 @@ SlamOptions ReadSlamOptions(ConfigMap& root) {
     s->Read("redundant_ratio", &o.mapping.redundant_ratio);
     s->Read("local_keyframes", &o.mapping.local_keyframes);
     s->Read("fixed_keyframes", &o.mapping.fixed_keyframes);
+    s->Read("max_ba_observations", &o.mapping.max_ba_observations);
     s->Read("ba_iterations", &o.mapping.bundle_adjustment.iterations);
     s->Read("ba_refine_iterations", &o.mapping.bundle_adjustment.refine_iterations);
     s->RejectUnknownKeys();
@@ -112,7 +113,8 @@ void WriteSlamOptions(const SlamOptions& o, YAML::Emitter* out) {
     << YAML::Value << o.mapping.fuse_neighbours << YAML::Key << "redundant_ratio" << YAML::Value
     << o.mapping.redundant_ratio << YAML::Key << "local_keyframes" << YAML::Value
     << o.mapping.local_keyframes << YAML::Key << "fixed_keyframes" << YAML::Value
-    << o.mapping.fixed_keyframes << YAML::Key << "ba_iterations" << YAML::Value
+    << o.mapping.fixed_keyframes << YAML::Key << "max_ba_observations" << YAML::Value
+    << o.mapping.max_ba_observations << YAML::Key << "ba_iterations" << YAML::Value
     << o.mapping.bundle_adjustment.iterations << YAML::Key << "ba_refine_iterations" << YAML::Value
     << o.mapping.bundle_adjustment.refine_iterations << YAML::EndMap;
   const LoopClosingOptions& l = o.loop_closing;
