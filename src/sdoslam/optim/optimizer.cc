@@ -137,6 +137,14 @@ std::vector<bool> BundleAdjust(const PinholeIntrinsics& k, BundleAdjustmentProbl
     }
   };
   counted.observations = static_cast<int>(ba->observations.size());
+  // A residual cannot be evaluated behind its camera, and Ceres gives up on the whole problem
+  // when one fails at the start (seen after loop corrections on walking_xyz): such an
+  // observation starts as an outlier; it comes back if the solution puts it in front.
+  for (size_t o = 0; o < ba->observations.size(); ++o) {
+    const auto& obs = ba->observations[o];
+    const Eigen::Isometry3d T = PoseFromParameters(poses[static_cast<size_t>(obs.pose)].data());
+    inlier[o] = (T * ba->points[static_cast<size_t>(obs.point)]).z() > 1e-6;
+  }
   if (!ba->observations.empty()) {
     solve(options.iterations);
     classify();

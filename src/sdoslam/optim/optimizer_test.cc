@@ -62,29 +62,34 @@ TEST(OptimizePose, RecoversAKnownPoseFromNoisyCorrespondencesWithOutliers) {
   EXPECT_EQ(r.num_inliers, static_cast<int>(std::count(r.inlier.begin(), r.inlier.end(), true)));
 }
 
-TEST(BundleAdjust, ReducesReprojectionErrorOfAPerturbedProblem) {
+// Four cameras (the first fixed) seeing 200 points; poses and points start perturbed by ~2 cm.
+BundleAdjustmentProblem PerturbedProblem(std::vector<Eigen::Isometry3d>* truth) {
   std::mt19937 rng(9);
   std::uniform_real_distribution<double> xy(-1.5, 1.5), depth(2, 4);
   std::normal_distribution<double> noise(0, 0.02);
   BundleAdjustmentProblem ba;
-  std::vector<Eigen::Isometry3d> truth;
   for (int c = 0; c < 4; ++c) {
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
     T.translation() = Eigen::Vector3d(-0.15 * c, 0.05 * c, 0);
     T.linear() = Eigen::AngleAxisd(0.03 * c, Eigen::Vector3d::UnitY()).toRotationMatrix();
-    truth.push_back(T);
+    truth->push_back(T);
     Eigen::Isometry3d perturbed = T;
     if (c > 0) perturbed.translation() += Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
     ba.poses.push_back(perturbed);
     ba.pose_fixed.push_back(c == 0);  // gauge
   }
-  std::vector<Eigen::Vector3d> true_points;
   for (int i = 0; i < 200; ++i) {
     const Eigen::Vector3d X(xy(rng), xy(rng), depth(rng));
-    true_points.push_back(X);
     ba.points.push_back(X + Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
-    for (int c = 0; c < 4; ++c) ba.observations.push_back({c, i, Observe(truth[c], X, c % 2 == 0)});
+    for (int c = 0; c < 4; ++c)
+      ba.observations.push_back({c, i, Observe((*truth)[c], X, c % 2 == 0)});
   }
+  return ba;
+}
+
+TEST(BundleAdjust, ReducesReprojectionErrorOfAPerturbedProblem) {
+  std::vector<Eigen::Isometry3d> truth;
+  BundleAdjustmentProblem ba = PerturbedProblem(&truth);
   auto total_error = [&] {
     double e = 0;
     for (const auto& o : ba.observations) {
@@ -105,6 +110,25 @@ TEST(BundleAdjust, ReducesReprojectionErrorOfAPerturbedProblem) {
   for (int c = 1; c < 4; ++c)
     EXPECT_LT((ba.poses[c].translation() - truth[c].translation()).norm(), 1e-4);
   EXPECT_TRUE(ba.poses[0].isApprox(truth[0]));  // fixed
+}
+
+// A point that starts behind the cameras observing it (a wrong match moved by a loop
+// correction) cannot be evaluated; it must not stop the others from being adjusted.
+TEST(BundleAdjust, APointBehindItsCamerasIsAnOutlierAndTheRestIsStillAdjusted) {
+  std::vector<Eigen::Isometry3d> truth;
+  BundleAdjustmentProblem ba = PerturbedProblem(&truth);
+  const int behind = static_cast<int>(ba.points.size());
+  ba.points.push_back(Eigen::Vector3d(0.1, 0.0, -1.0));
+  PointObservation centre;
+  centre.pixel = Eigen::Vector2d(320, 240);
+  for (int c = 1; c < 3; ++c) ba.observations.push_back({c, behind, centre});
+  const auto inliers = BundleAdjust(kK, &ba);
+  EXPECT_FALSE(inliers[inliers.size() - 1]);
+  EXPECT_FALSE(inliers[inliers.size() - 2]);
+  EXPECT_EQ(std::count(inliers.begin(), inliers.end(), true),
+            static_cast<long>(ba.observations.size()) - 2);
+  for (int c = 1; c < 4; ++c)
+    EXPECT_LT((ba.poses[c].translation() - truth[c].translation()).norm(), 1e-4);
 }
 
 }  // namespace
