@@ -539,6 +539,89 @@ TEST(SlamOptionsTest, EveryDeprecatedKeyReadsAsItsNewKeyWithOneWarning) {
   }
 }
 
+// Every key the previous version read (its hand-written list, copied here, not the alias
+// table) still reads into the setting it named: renamed ones with one warning, the rest without.
+TEST(SlamOptionsTest, EveryKeyOfThePreviousVersionReadsIntoItsSetting) {
+  std::vector<std::pair<std::string, std::string>> keys;
+  for (const char* key : {"orb.num_features",
+                          "orb.scale_factor",
+                          "orb.num_levels",
+                          "orb.fast_threshold",
+                          "orb.min_fast_threshold",
+                          "rgbd.bf",
+                          "rgbd.close_depth_baselines",
+                          "tracking.min_inliers",
+                          "tracking.max_frames_between_keyframes",
+                          "tracking.reference_ratio",
+                          "tracking.projection_radius",
+                          "tracking.relocalization_candidates",
+                          "tracking.relocalization_place_candidates",
+                          "tracking.relocalization_prior_frames",
+                          "tracking.relocalization_radius_factor",
+                          "mapping.fuse_neighbours",
+                          "mapping.redundant_ratio",
+                          "mapping.local_keyframes",
+                          "mapping.fixed_keyframes",
+                          "mapping.max_ba_observations",
+                          "loop_closing.enabled",
+                          "loop_closing.min_keyframes_between",
+                          "loop_closing.consistent_detections",
+                          "loop_closing.min_matches",
+                          "loop_closing.min_inliers",
+                          "loop_closing.min_projected_inliers",
+                          "loop_closing.essential_min_weight"})
+    keys.emplace_back(key, key);
+  for (const char* key : {"enabled",
+                          "frame_gap",
+                          "retry_gap",
+                          "min_flow",
+                          "noise_sigmas",
+                          "depth_noise_a",
+                          "depth_noise_b",
+                          "pixel_sigma",
+                          "segment_ratio",
+                          "min_segment_features",
+                          "sample_votes",
+                          "max_iterations",
+                          "min_inliers_kept",
+                          "min_established_kept",
+                          "established_observations",
+                          "track_window",
+                          "track_levels",
+                          "max_track_error",
+                          "max_round_trip_px",
+                          "skip_round_trip_px",
+                          "cull_after",
+                          "depth_window_radius",
+                          "max_segment_area"})
+    keys.emplace_back(std::string("consistency.") + key,
+                      std::string("tracking.consistency.") + key);
+  keys.emplace_back("consistency.static_motion", "tracking.consistency.static_motion.enabled");
+  for (const char* key :
+       {"grid_columns", "grid_rows", "min_corner_strength", "hypotheses", "inlier_px", "min_gain",
+        "min_extra_samples", "min_correspondences", "seed"})
+    keys.emplace_back(std::string("consistency.static_motion_") + key,
+                      std::string("tracking.consistency.static_motion.") + key);
+  keys.emplace_back("mapping.ba_iterations", "mapping.bundle_adjustment.iterations");
+  keys.emplace_back("mapping.ba_refine_iterations", "mapping.bundle_adjustment.refine_iterations");
+  keys.emplace_back("loop_closing.vocabulary", "vocabulary");
+  ASSERT_EQ(keys.size(), 30u + 33u);
+  const auto read = [](ConfigMap& root) { return ReadSlamOptions(root); };
+  const auto defaults = testing::FieldValues(SlamOptions());
+  for (const auto& [old_path, new_path] : keys) {
+    SCOPED_TRACE(old_path + " -> " + new_path);
+    std::string yaml, expected;
+    ASSERT_TRUE(testing::NearbyValue<SlamOptions>(new_path, &yaml, &expected));
+    if (new_path == "orb.scale_factor") yaml = expected = "1.3";  // halved it would fail its check
+    testing::CapturedLog log;
+    const auto by_new = testing::ReadValues(testing::NestedYaml(new_path, yaml), "new.yaml", read);
+    EXPECT_EQ(by_new.at(new_path), expected);
+    EXPECT_NE(by_new.at(new_path), defaults.at(new_path));
+    EXPECT_EQ(testing::ReadValues(testing::NestedYaml(old_path, yaml), "old.yaml", read), by_new);
+    EXPECT_EQ(log.Count("deprecated"), old_path == new_path ? 0 : 1) << log.text();
+  }
+}
+
 TEST(SlamOptionsTest, AnOldAndANewKeyForOneSettingAreAnErrorNamingBoth) {
   EXPECT_EQ(ErrorOf("mapping:\n  ba_iterations: 3\n  bundle_adjustment:\n    iterations: 4\n"),
             "c.yaml: mapping.ba_iterations (line 2) is the deprecated name of "

@@ -104,6 +104,17 @@ bool NearbyValue(const std::string& path, std::string* yaml, std::string* expect
   return found;
 }
 
+// Reads `yaml` with `read` (ReadSlamOptions or ReadFrontEndOptions) and checks nothing is left
+// unread; the settings' values by path.
+template <class Read>
+std::map<std::string, std::string> ReadValues(const std::string& yaml, const std::string& origin,
+                                              Read read) {
+  ConfigMap root = ConfigMap::LoadString(yaml, origin);
+  const auto values = FieldValues(read(root));
+  root.RejectUnknownKeys();
+  return values;
+}
+
 // "a.b.c: v" as nested YAML blocks.
 inline std::string NestedYaml(const std::string& path, const std::string& value) {
   std::string yaml, indent;
