@@ -150,8 +150,8 @@ void AddRunCommand(CLI::App& app) {
           ->check(CLI::IsMember({"auto", "tum", "omd", "bonn"}));
   cmd->add_option(
          "--config", args->config,
-         "config YAML: camera: and optional orb:, rgbd:, tracking:, consistency:, mapping:, "
-         "dynamic:")
+         "config YAML: camera: and optional orb:, rgbd:, tracking:, mapping:, loop_closing:, "
+         "vocabulary:, dynamic: (README: the keys)")
       ->required();
   cmd->add_option("--out", args->out, "output folder")->required();
   cmd->add_option("--associations", args->associations, "explicit rgb/depth association file");

@@ -1,5 +1,8 @@
 #include "sdoslam/core/config.h"
 
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
 #include <fstream>
 #include <map>
 #include <sstream>
@@ -103,6 +106,137 @@ void ConfigMap::RejectUnknownKeys() const {
       for (const auto& k : used_) known += (known.empty() ? "" : ", ") + k;
       throw Error(Where(entry.first) + "unknown key '" + Path(key) + "'" +
                   (known.empty() ? "" : " (known here: " + known + ")"));
+    }
+  }
+}
+
+namespace {
+
+// A value below the mapping: its dotted path (below the mapping), its parent mapping and key.
+struct Leaf {
+  std::string path;
+  YAML::Node parent;
+  std::string key;
+};
+
+void CollectLeaves(const YAML::Node& map, const std::string& prefix, std::vector<Leaf>* leaves) {
+  for (const auto& entry : map) {
+    if (!entry.first.IsScalar()) continue;  // RejectUnknownKeys names it
+    const std::string path = prefix + entry.first.Scalar();
+    if (entry.second.IsMap() && entry.second.size() > 0) {
+      CollectLeaves(entry.second, path + ".", leaves);
+    } else {
+      leaves->push_back({path, map, entry.first.Scalar()});
+    }
+  }
+}
+
+std::vector<std::string> SplitPath(const std::string& path) {
+  std::vector<std::string> parts;
+  size_t start = 0;
+  for (size_t dot; (dot = path.find('.', start)) != std::string::npos; start = dot + 1)
+    parts.push_back(path.substr(start, dot - start));
+  parts.push_back(path.substr(start));
+  return parts;
+}
+
+}  // namespace
+
+void ConfigMap::ApplyAliases(std::span<const ConfigAlias> aliases,
+                             const std::vector<std::string>& known_keys) {
+  auto known = [&](const std::string& path) {
+    return std::find(known_keys.begin(), known_keys.end(), path) != known_keys.end();
+  };
+  // The alias of a key: its own entry, or the entry of the nearest section above it that moved.
+  auto new_path_of = [&](const std::string& path) -> std::optional<std::string> {
+    const ConfigAlias* best = nullptr;
+    size_t best_length = 0;
+    for (const ConfigAlias& alias : aliases) {
+      const std::string old_path = alias.old_path;
+      const bool exact = path == old_path;
+      const bool below = !known(alias.new_path) && path.size() > old_path.size() &&
+                         path.compare(0, old_path.size(), old_path) == 0 &&
+                         path[old_path.size()] == '.';
+      if ((exact || below) && old_path.size() >= best_length) {
+        best = &alias;
+        best_length = old_path.size();
+      }
+    }
+    if (best == nullptr) return std::nullopt;
+    return std::string(best->new_path) + path.substr(best_length);
+  };
+  auto line_of = [](const YAML::Node& node) {
+    return node.Mark().is_null() ? std::string("?") : std::to_string(node.Mark().line + 1);
+  };
+  std::vector<Leaf> leaves;
+  CollectLeaves(node_, "", &leaves);
+  std::vector<std::string> moved;  // old paths, for the sections the moves emptied
+  for (const Leaf& leaf : leaves) {
+    const std::optional<std::string> new_path = new_path_of(leaf.path);
+    if (!new_path) continue;
+    YAML::Node parent = leaf.parent;  // a handle: changes go to the tree
+    const YAML::Node value = leaf.parent[leaf.key];
+    moved.push_back(leaf.path);
+    if (value.IsMap()) {  // an old section written empty ({}): nothing to move
+      spdlog::warn("{}:{}: config section '{}' is deprecated, its settings are below '{}'", origin_,
+                   line_of(value), Path(leaf.path), Path(*new_path));
+      parent.remove(leaf.key);
+      continue;
+    }
+    if (!known(*new_path)) {
+      throw Error(Where(value) + "unknown key '" + Path(leaf.path) + "' (" + Path(*new_path) +
+                  " names no setting either)");
+    }
+    // Walk down to the new key's mapping, making the sections that are missing. (reset() moves
+    // a handle; assigning to a YAML::Node would overwrite the node it refers to.)
+    const std::vector<std::string> parts = SplitPath(*new_path);
+    YAML::Node map(node_);
+    std::string walked;
+    for (size_t i = 0; i + 1 < parts.size(); ++i) {
+      walked += parts[i];
+      const YAML::Node& const_map = map;
+      if (const YAML::Node next = const_map[parts[i]]) {
+        if (!next.IsMap()) {
+          throw Error(Where(next) + Path(walked) + ": expected a mapping of settings (" +
+                      Path(leaf.path) + " on line " + line_of(value) + " is read as " +
+                      Path(*new_path) + ")");
+        }
+      } else {
+        map[parts[i]] = YAML::Node(YAML::NodeType::Map);
+      }
+      const YAML::Node next = const_map[parts[i]];
+      map.reset(next);
+      walked += ".";
+    }
+    const YAML::Node& const_map = map;
+    if (const YAML::Node existing = const_map[parts.back()]) {
+      throw Error(origin_ + ": " + Path(leaf.path) + " (line " + line_of(value) +
+                  ") is the deprecated name of " + Path(*new_path) + " (line " + line_of(existing) +
+                  "): give only " + Path(*new_path));
+    }
+    spdlog::warn("{}:{}: config key '{}' is deprecated, it is now '{}' (read as that; rename it)",
+                 origin_, line_of(value), Path(leaf.path), Path(*new_path));
+    map[parts.back()] = value;
+    parent.remove(leaf.key);
+  }
+  // Sections the moves emptied go too: they held nothing but the moved keys.
+  for (const std::string& path : moved) {
+    std::vector<std::string> parts = SplitPath(path);
+    while (parts.size() > 1) {
+      parts.pop_back();
+      YAML::Node parent(node_);
+      bool found = true;
+      for (size_t i = 0; i + 1 < parts.size() && found; ++i) {
+        const YAML::Node& const_parent = parent;
+        const YAML::Node next = const_parent[parts[i]];
+        found = next && next.IsMap();
+        if (found) parent.reset(next);
+      }
+      if (!found) break;
+      const YAML::Node& const_parent = parent;
+      const YAML::Node section = const_parent[parts.back()];
+      if (!section || !section.IsMap() || section.size() > 0) break;
+      parent.remove(parts.back());
     }
   }
 }

@@ -28,10 +28,10 @@ float Median(std::vector<float>* v) {
 
 }  // namespace
 
-void SdoClassifierOptions::Check() const {
-  if (work_width < 16) throw Error("classifier.work_width must be at least 16");
-  auto fraction = [](double v, const char* name) {
-    if (v < 0 || v > 1) throw Error(std::string("classifier.") + name + " must be in [0, 1]");
+void SdoClassifierOptions::Check(const std::string& path) const {
+  if (work_width < 16) throw Error(path + "work_width must be at least 16");
+  auto fraction = [&path](double v, const char* name) {
+    if (v < 0 || v > 1) throw Error(path + name + " must be in [0, 1]");
   };
   fraction(min_box_iou, "min_box_iou");
   fraction(min_inside_box, "min_inside_box");
@@ -42,12 +42,13 @@ void SdoClassifierOptions::Check() const {
   fraction(persistence_overlap, "persistence_overlap");
   fraction(persistence_large_overlap, "persistence_large_overlap");
   fraction(persistence_min_in_front, "persistence_min_in_front");
-  if (persistence_min_ordered < 0) throw Error("classifier.persistence_min_ordered must be ≥ 0");
-  if (same_depth_tolerance < 0) throw Error("classifier.same_depth_tolerance must be ≥ 0");
-  if (same_depth_min_m < 0) throw Error("classifier.same_depth_min_m must be ≥ 0");
-  if (in_front_ratio < 1) throw Error("classifier.in_front_ratio must be ≥ 1");
+  if (persistence_min_ordered < 0) throw Error(path + "persistence_min_ordered must be ≥ 0");
+  if (same_depth_tolerance < 0) throw Error(path + "same_depth_tolerance must be ≥ 0");
+  if (same_depth_min_m < 0) throw Error(path + "same_depth_min_m must be ≥ 0");
+  if (in_front_ratio < 1) throw Error(path + "in_front_ratio must be ≥ 1");
   if (boundary_band_px < 0 || margin_px < 0 || persistence_frames < 0 || persistence_frames > 250)
-    throw Error("classifier: boundary_band_px, margin_px ≥ 0; persistence_frames in [0, 250]");
+    throw Error(path + "boundary_band_px, " + path + "margin_px ≥ 0; " + path +
+                "persistence_frames in [0, 250]");
 }
 
 SdoClassifier::SdoClassifier(const SdoClassifierOptions& options) : options_(options) {

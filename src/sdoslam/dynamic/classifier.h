@@ -72,7 +72,28 @@ struct SdoClassifierOptions {
   double persistence_large_overlap = 0.8;
 
   int margin_px = 1;  // work pixels by which dynamic regions grow (features on silhouettes)
-  void Check() const;
+  void Check(const std::string& path = "dynamic.classifier.") const;  // Error names path + setting
+  template <class Options, class Visitor>
+  static void VisitFields(Options& o, Visitor&& visit) {
+    visit("movable_classes", o.movable_classes);
+    visit("work_width", o.work_width);
+    visit("min_box_iou", o.min_box_iou);
+    visit("min_inside_box", o.min_inside_box);
+    visit("same_depth_tolerance", o.same_depth_tolerance);
+    visit("same_depth_min_m", o.same_depth_min_m);
+    visit("boundary_band_px", o.boundary_band_px);
+    visit("min_outline_on_boundary", o.min_outline_on_boundary);
+    visit("min_in_front", o.min_in_front);
+    visit("min_in_front_of_outline", o.min_in_front_of_outline);
+    visit("in_front_ratio", o.in_front_ratio);
+    visit("max_segment_area", o.max_segment_area);
+    visit("persistence_frames", o.persistence_frames);
+    visit("persistence_overlap", o.persistence_overlap);
+    visit("persistence_large_overlap", o.persistence_large_overlap);
+    visit("persistence_min_in_front", o.persistence_min_in_front);
+    visit("persistence_min_ordered", o.persistence_min_ordered);
+    visit("margin_px", o.margin_px);
+  }
 };
 
 struct SdoResult {

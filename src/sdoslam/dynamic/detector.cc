@@ -43,10 +43,10 @@ const std::vector<std::string>& CocoClassNames() {
   return kNames;
 }
 
-void DetectorOptions::Check() const {
+void DetectorOptions::Check(const std::string& path) const {
   if (score_threshold < 0 || score_threshold > 1)
-    throw Error("detector.score_threshold must be in [0, 1]");
-  if (nms_iou <= 0 || nms_iou > 1) throw Error("detector.nms_iou must be in (0, 1]");
+    throw Error(path + "score_threshold must be in [0, 1]");
+  if (nms_iou <= 0 || nms_iou > 1) throw Error(path + "nms_iou must be in (0, 1]");
 }
 
 std::vector<Detection> SuppressNonMaxima(std::vector<Detection> detections, double iou) {
@@ -69,9 +69,9 @@ std::vector<Detection> SuppressNonMaxima(std::vector<Detection> detections, doub
   return kept;
 }
 
-void HogDetectorOptions::Check() const {
-  if (work_width < 64) throw Error("hog.work_width must be at least 64");
-  if (scale <= 1.0) throw Error("hog.scale must exceed 1");
+void HogDetectorOptions::Check(const std::string& path) const {
+  if (work_width < 64) throw Error(path + "work_width must be at least 64");
+  if (scale <= 1.0) throw Error(path + "scale must exceed 1");
 }
 
 struct HogDetector::Impl {

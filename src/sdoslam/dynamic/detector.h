@@ -31,7 +31,12 @@ const std::vector<std::string>& CocoClassNames();
 struct DetectorOptions {
   double score_threshold = 0.4;  // detections below are dropped
   double nms_iou = 0.5;          // per-class non-maximum suppression
-  void Check() const;
+  void Check(const std::string& path = "dynamic.detector.") const;  // Error names path + setting
+  template <class Options, class Visitor>
+  static void VisitFields(Options& o, Visitor&& visit) {
+    visit("score_threshold", o.score_threshold);
+    visit("nms_iou", o.nms_iou);
+  }
 };
 
 // Greedy per-class non-maximum suppression, highest score first.
@@ -49,7 +54,14 @@ struct HogDetectorOptions {
   int work_width = 320;
   double hit_threshold = 0.0;
   double scale = 1.1;  // pyramid step
-  void Check() const;
+  void Check(
+      const std::string& path = "dynamic.detector.hog.") const;  // Error names path + setting
+  template <class Options, class Visitor>
+  static void VisitFields(Options& o, Visitor&& visit) {
+    visit("work_width", o.work_width);
+    visit("hit_threshold", o.hit_threshold);
+    visit("scale", o.scale);
+  }
 };
 class HogDetector : public Detector {
  public:

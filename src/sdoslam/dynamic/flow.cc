@@ -112,12 +112,12 @@ class OnnxFlow : public FlowEstimator {
 
 }  // namespace
 
-void FlowOptions::Check() const {
-  if (work_width < 32) throw Error("flow.work_width must be at least 32");
-  if (dis_preset < 0 || dis_preset > 2) throw Error("flow.dis_preset must be 0, 1 or 2");
-  if (frame_gap < 1 || frame_gap > 30) throw Error("flow.frame_gap must be in [1, 30]");
+void FlowOptions::Check(const std::string& path) const {
+  if (work_width < 32) throw Error(path + "work_width must be at least 32");
+  if (dis_preset < 0 || dis_preset > 2) throw Error(path + "dis_preset must be 0, 1 or 2");
+  if (frame_gap < 1 || frame_gap > 30) throw Error(path + "frame_gap must be in [1, 30]");
   if (!onnx_input_names.empty() && onnx_input_names.size() != 2)
-    throw Error("flow.onnx_input_names must name exactly two inputs (previous, current)");
+    throw Error(path + "onnx_input_names must name exactly two inputs (previous, current)");
 }
 
 std::unique_ptr<FlowEstimator> MakeDisFlow(const FlowOptions& options) {

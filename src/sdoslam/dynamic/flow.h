@@ -29,7 +29,14 @@ struct FlowOptions {
   // input takes 1×6×H×W, previous RGB then current RGB; a model with two takes previous then
   // current in the order the file declares its inputs.
   std::vector<std::string> onnx_input_names;
-  void Check() const;
+  void Check(const std::string& path = "dynamic.flow.") const;  // Error names path + setting
+  template <class Options, class Visitor>
+  static void VisitFields(Options& o, Visitor&& visit) {
+    visit("work_width", o.work_width);
+    visit("dis_preset", o.dis_preset);
+    visit("frame_gap", o.frame_gap);
+    visit("onnx_input_names", o.onnx_input_names);
+  }
 };
 
 // OpenCV's DIS optical flow (Kroeger et al. 2016): fast on a CPU, the default.

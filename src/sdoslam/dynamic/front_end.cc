@@ -55,185 +55,69 @@ void FrontEndOptions::Check() const {
   CheckName("segmenter", segmenter, kSegmenters);
   CheckName("detector", detector, kDetectors);
   CheckName("flow", flow, kFlows);
-  if (detect_every < 1) throw Error("detector.every must be at least 1");
-  rgbd.Check();
-  geometric.Check();
-  yoloseg.Check();
-  detection.Check();
-  hog.Check();
-  flow_options.Check();
-  boundaries.Check();
-  classifier.Check();
+  if (detect_every < 1) throw Error("dynamic.detector.every must be at least 1");
+  rgbd.Check("dynamic.segmenter.rgbd.");
+  geometric.Check("dynamic.segmenter.geometric.");
+  yoloseg.Check("dynamic.segmenter.yoloseg.");
+  detection.Check("dynamic.detector.");
+  hog.Check("dynamic.detector.hog.");
+  flow_options.Check("dynamic.flow.");
+  boundaries.Check("dynamic.boundaries.");
+  classifier.Check("dynamic.classifier.");
   if (segmenter == "onnx-yoloseg" && segmenter_model.empty())
-    throw Error("segmenter 'onnx-yoloseg' needs segmenter.model (an ONNX file)");
+    throw Error("segmenter 'onnx-yoloseg' needs dynamic.segmenter.model (an ONNX file)");
   if (segmenter == "file" && masks_folder.empty())
-    throw Error("segmenter 'file' needs segmenter.folder (instance-mask PNGs)");
+    throw Error("segmenter 'file' needs dynamic.segmenter.folder (instance-mask PNGs)");
   if ((detector == "nanodet" || detector == "fastestdet" || detector == "yolov8") &&
       detector_model.empty())
-    throw Error("detector '" + detector + "' needs detector.model (an ONNX file)");
+    throw Error("detector '" + detector + "' needs dynamic.detector.model (an ONNX file)");
   if (detector == "file" && detections_file.empty())
-    throw Error("detector 'file' needs detector.file (a detections JSON)");
-  if (flow == "onnx" && flow_model.empty()) throw Error("flow 'onnx' needs flow.model");
+    throw Error("detector 'file' needs dynamic.detector.file (a detections JSON)");
+  if (flow == "onnx" && flow_model.empty()) throw Error("flow 'onnx' needs dynamic.flow.model");
 }
+
+namespace {
+
+// The keys that moved when the config's paths became the options' own (issue 16): the settings
+// of one segmenter backend, and HOG's, got sections of their own.
+constexpr ConfigAlias kFrontEndAliases[] = {
+    {"dynamic.segmenter.work_width", "dynamic.segmenter.rgbd.work_width"},
+    {"dynamic.segmenter.sigma", "dynamic.segmenter.rgbd.sigma"},
+    {"dynamic.segmenter.k", "dynamic.segmenter.rgbd.k"},
+    {"dynamic.segmenter.min_size", "dynamic.segmenter.rgbd.min_size"},
+    {"dynamic.segmenter.colour_weight", "dynamic.segmenter.rgbd.colour_weight"},
+    {"dynamic.segmenter.depth_weight", "dynamic.segmenter.rgbd.depth_weight"},
+    {"dynamic.segmenter.score_threshold", "dynamic.segmenter.yoloseg.score_threshold"},
+    {"dynamic.segmenter.nms_iou", "dynamic.segmenter.yoloseg.nms_iou"},
+    {"dynamic.segmenter.mask_threshold", "dynamic.segmenter.yoloseg.mask_threshold"},
+    {"dynamic.segmenter.max_instances", "dynamic.segmenter.yoloseg.max_instances"},
+    {"dynamic.detector.hog_work_width", "dynamic.detector.hog.work_width"},
+    {"dynamic.detector.hog_hit_threshold", "dynamic.detector.hog.hit_threshold"},
+};
+
+}  // namespace
+
+std::span<const ConfigAlias> FrontEndOptionAliases() { return kFrontEndAliases; }
 
 FrontEndOptions ReadFrontEndOptions(ConfigMap& root) {
   FrontEndOptions o;
-  auto section = root.Section("dynamic");
+  root.ApplyAliases(FrontEndOptionAliases(), ListFields<FrontEndOptions>("dynamic."));
+  std::optional<ConfigMap> section = root.Section("dynamic");
   if (!section) return o;
-  std::string path;
-  if (auto s = section->Section("segmenter")) {
-    s->Read("backend", &o.segmenter);
-    if (path.clear(), s->Read("model", &path), !path.empty()) o.segmenter_model = path;
-    if (path.clear(), s->Read("folder", &path), !path.empty()) o.masks_folder = path;
-    s->Read("work_width", &o.rgbd.work_width);
-    s->Read("sigma", &o.rgbd.sigma);
-    s->Read("k", &o.rgbd.k);
-    s->Read("min_size", &o.rgbd.min_size);
-    s->Read("colour_weight", &o.rgbd.colour_weight);
-    s->Read("depth_weight", &o.rgbd.depth_weight);
-    s->Read("score_threshold", &o.yoloseg.score_threshold);
-    s->Read("nms_iou", &o.yoloseg.nms_iou);
-    s->Read("mask_threshold", &o.yoloseg.mask_threshold);
-    s->Read("max_instances", &o.yoloseg.max_instances);
-    if (auto g = s->Section("geometric")) {
-      GeometricSegmenterOptions::VisitFields(
-          o.geometric, [&](const char* key, auto& value) { g->Read(key, &value); });
-      g->RejectUnknownKeys();
-    }
-    s->RejectUnknownKeys();
-  }
-  if (auto s = section->Section("detector")) {
-    s->Read("backend", &o.detector);
-    if (path.clear(), s->Read("model", &path), !path.empty()) o.detector_model = path;
-    if (path.clear(), s->Read("file", &path), !path.empty()) o.detections_file = path;
-    s->Read("every", &o.detect_every);
-    s->Read("score_threshold", &o.detection.score_threshold);
-    s->Read("nms_iou", &o.detection.nms_iou);
-    s->Read("hog_work_width", &o.hog.work_width);
-    s->Read("hog_hit_threshold", &o.hog.hit_threshold);
-    s->RejectUnknownKeys();
-  }
-  if (auto s = section->Section("flow")) {
-    s->Read("backend", &o.flow);
-    if (path.clear(), s->Read("model", &path), !path.empty()) o.flow_model = path;
-    s->Read("work_width", &o.flow_options.work_width);
-    s->Read("dis_preset", &o.flow_options.dis_preset);
-    s->Read("frame_gap", &o.flow_options.frame_gap);
-    s->ReadList("onnx_input_names", &o.flow_options.onnx_input_names);
-    s->RejectUnknownKeys();
-  }
-  if (auto s = section->Section("boundaries")) {
-    s->Read("k_magnitude", &o.boundaries.k_magnitude);
-    s->Read("k_orientation", &o.boundaries.k_orientation);
-    s->Read("strong", &o.boundaries.strong);
-    s->Read("threshold", &o.boundaries.threshold);
-    s->Read("min_flow_for_angle", &o.boundaries.min_flow_for_angle);
-    s->RejectUnknownKeys();
-  }
-  if (auto s = section->Section("classifier")) {
-    SdoClassifierOptions& c = o.classifier;
-    s->ReadList("movable_classes", &c.movable_classes);
-    s->Read("work_width", &c.work_width);
-    s->Read("min_box_iou", &c.min_box_iou);
-    s->Read("min_inside_box", &c.min_inside_box);
-    s->Read("same_depth_tolerance", &c.same_depth_tolerance);
-    s->Read("same_depth_min_m", &c.same_depth_min_m);
-    s->Read("boundary_band_px", &c.boundary_band_px);
-    s->Read("min_outline_on_boundary", &c.min_outline_on_boundary);
-    s->Read("min_in_front", &c.min_in_front);
-    s->Read("min_in_front_of_outline", &c.min_in_front_of_outline);
-    s->Read("in_front_ratio", &c.in_front_ratio);
-    s->Read("max_segment_area", &c.max_segment_area);
-    s->Read("persistence_frames", &c.persistence_frames);
-    s->Read("persistence_overlap", &c.persistence_overlap);
-    s->Read("persistence_large_overlap", &c.persistence_large_overlap);
-    s->Read("persistence_min_in_front", &c.persistence_min_in_front);
-    s->Read("persistence_min_ordered", &c.persistence_min_ordered);
-    s->Read("margin_px", &c.margin_px);
-    s->RejectUnknownKeys();
-  }
+  ReadFields(*section, &o);
   section->RejectUnknownKeys();
   try {
     o.Check();
   } catch (const Error& e) {
-    throw Error(root.origin() + ": dynamic: " + e.what());
+    throw Error(root.origin() + ": " + e.what());
   }
   return o;
 }
 
 void WriteFrontEndOptions(const FrontEndOptions& o, YAML::Emitter* out) {
-  YAML::Emitter& y = *out;
-  auto kv = [&](const char* key, const auto& value) {
-    y << YAML::Key << key << YAML::Value << value;
-  };
-  y << YAML::Key << "dynamic" << YAML::Value << YAML::BeginMap;
-  y << YAML::Key << "segmenter" << YAML::Value << YAML::BeginMap;
-  kv("backend", o.segmenter);
-  if (!o.segmenter_model.empty()) kv("model", o.segmenter_model.string());
-  if (!o.masks_folder.empty()) kv("folder", o.masks_folder.string());
-  kv("work_width", o.rgbd.work_width);
-  kv("sigma", o.rgbd.sigma);
-  kv("k", o.rgbd.k);
-  kv("min_size", o.rgbd.min_size);
-  kv("colour_weight", o.rgbd.colour_weight);
-  kv("depth_weight", o.rgbd.depth_weight);
-  kv("score_threshold", o.yoloseg.score_threshold);
-  kv("nms_iou", o.yoloseg.nms_iou);
-  kv("mask_threshold", o.yoloseg.mask_threshold);
-  kv("max_instances", o.yoloseg.max_instances);
-  y << YAML::Key << "geometric" << YAML::Value << YAML::BeginMap;
-  GeometricSegmenterOptions::VisitFields(o.geometric, kv);
-  y << YAML::EndMap;
-  y << YAML::EndMap;
-  y << YAML::Key << "detector" << YAML::Value << YAML::BeginMap;
-  kv("backend", o.detector);
-  if (!o.detector_model.empty()) kv("model", o.detector_model.string());
-  if (!o.detections_file.empty()) kv("file", o.detections_file.string());
-  kv("every", o.detect_every);
-  kv("score_threshold", o.detection.score_threshold);
-  kv("nms_iou", o.detection.nms_iou);
-  kv("hog_work_width", o.hog.work_width);
-  kv("hog_hit_threshold", o.hog.hit_threshold);
-  y << YAML::EndMap;
-  y << YAML::Key << "flow" << YAML::Value << YAML::BeginMap;
-  kv("backend", o.flow);
-  if (!o.flow_model.empty()) kv("model", o.flow_model.string());
-  kv("work_width", o.flow_options.work_width);
-  kv("dis_preset", o.flow_options.dis_preset);
-  kv("frame_gap", o.flow_options.frame_gap);
-  if (!o.flow_options.onnx_input_names.empty())
-    y << YAML::Key << "onnx_input_names" << YAML::Value << YAML::Flow
-      << o.flow_options.onnx_input_names;
-  y << YAML::EndMap;
-  y << YAML::Key << "boundaries" << YAML::Value << YAML::BeginMap;
-  kv("k_magnitude", o.boundaries.k_magnitude);
-  kv("k_orientation", o.boundaries.k_orientation);
-  kv("strong", o.boundaries.strong);
-  kv("threshold", o.boundaries.threshold);
-  kv("min_flow_for_angle", o.boundaries.min_flow_for_angle);
-  y << YAML::EndMap;
-  const SdoClassifierOptions& c = o.classifier;
-  y << YAML::Key << "classifier" << YAML::Value << YAML::BeginMap;
-  y << YAML::Key << "movable_classes" << YAML::Value << YAML::Flow << c.movable_classes;
-  kv("work_width", c.work_width);
-  kv("min_box_iou", c.min_box_iou);
-  kv("min_inside_box", c.min_inside_box);
-  kv("same_depth_tolerance", c.same_depth_tolerance);
-  kv("same_depth_min_m", c.same_depth_min_m);
-  kv("boundary_band_px", c.boundary_band_px);
-  kv("min_outline_on_boundary", c.min_outline_on_boundary);
-  kv("min_in_front", c.min_in_front);
-  kv("min_in_front_of_outline", c.min_in_front_of_outline);
-  kv("in_front_ratio", c.in_front_ratio);
-  kv("max_segment_area", c.max_segment_area);
-  kv("persistence_frames", c.persistence_frames);
-  kv("persistence_overlap", c.persistence_overlap);
-  kv("persistence_large_overlap", c.persistence_large_overlap);
-  kv("persistence_min_in_front", c.persistence_min_in_front);
-  kv("persistence_min_ordered", c.persistence_min_ordered);
-  kv("margin_px", c.margin_px);
-  y << YAML::EndMap;
-  y << YAML::EndMap;
+  *out << YAML::Key << "dynamic" << YAML::Value << YAML::BeginMap;
+  WriteFields(o, out);
+  *out << YAML::EndMap;
 }
 
 FrontEnd::FrontEnd(const FrontEndOptions& options, const std::filesystem::path& dataset_folder,

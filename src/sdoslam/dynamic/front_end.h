@@ -3,6 +3,7 @@
 #include <deque>
 #include <filesystem>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -27,7 +28,7 @@ struct FrontEndOptions {
   std::filesystem::path segmenter_model;  // onnx-yoloseg: Fast-SAM / YOLOv8-seg export
   std::filesystem::path masks_folder;     // file: instance PNGs (relative: to the dataset)
   RgbdSegmenterOptions rgbd;
-  GeometricSegmenterOptions geometric;  // config: dynamic.segmenter.geometric.*
+  GeometricSegmenterOptions geometric;
   YoloSegOptions yoloseg;
 
   std::string detector = "hog";           // nanodet | fastestdet | yolov8 | hog | file | none
@@ -47,12 +48,48 @@ struct FrontEndOptions {
 
   MotionBoundaryOptions boundaries;
   SdoClassifierOptions classifier;
-  void Check() const;
+  void Check() const;  // Errors name the setting's config path (dynamic.detector.every)
+
+  // Every setting at its config key below dynamic:. The config groups them by stage, each
+  // stage's backend, model and options in its own section (dynamic.segmenter.backend,
+  // dynamic.segmenter.rgbd.work_width); a backend's own options are a section named as the
+  // member, options every backend of a stage shares (detection, flow_options) sit in the
+  // stage's section itself.
+  template <class Options, class Visitor>
+  static void VisitFields(Options& o, Visitor&& visit) {
+    visit("segmenter", OptionGroup{[&](auto&& v) {
+            v("backend", o.segmenter);
+            v("model", o.segmenter_model);
+            v("folder", o.masks_folder);
+            v("rgbd", o.rgbd);
+            v("geometric", o.geometric);
+            v("yoloseg", o.yoloseg);
+          }});
+    visit("detector", OptionGroup{[&](auto&& v) {
+            v("backend", o.detector);
+            v("model", o.detector_model);
+            v("file", o.detections_file);
+            v("every", o.detect_every);
+            DetectorOptions::VisitFields(o.detection, v);
+            v("hog", o.hog);
+          }});
+    visit("flow", OptionGroup{[&](auto&& v) {
+            v("backend", o.flow);
+            v("model", o.flow_model);
+            FlowOptions::VisitFields(o.flow_options, v);
+          }});
+    visit("boundaries", o.boundaries);
+    visit("classifier", o.classifier);
+  }
 };
 
-// Reads the optional `dynamic:` section; unknown keys and backend names are errors naming the
-// file and line.
+// Keys of earlier versions that still read, with a warning: old dotted path -> new one.
+std::span<const ConfigAlias> FrontEndOptionAliases();
+
+// Reads the optional `dynamic:` section; deprecated keys are read with a warning, unknown keys
+// and backend names are errors naming the file and line.
 FrontEndOptions ReadFrontEndOptions(ConfigMap& root);
+// Writes the `dynamic:` section (ReadFrontEndOptions reads it back to the same options).
 void WriteFrontEndOptions(const FrontEndOptions& options, YAML::Emitter* out);
 
 struct FrontEndTiming {

@@ -22,17 +22,18 @@ bool Finite(const cv::Vec3f& v) {
 
 }  // namespace
 
-void GeometricSegmenterOptions::Check() const {
-  if (work_width < 16) throw Error("segmenter.work_width must be at least 16");
+void GeometricSegmenterOptions::Check(const std::string& path) const {
+  if (work_width < 16) throw Error(path + "work_width must be at least 16");
   if (depth_step <= 0 || depth_step_min_m < 0)
-    throw Error("segmenter: depth_step > 0 and depth_step_min_m ≥ 0 are required");
+    throw Error(path + "depth_step > 0 and " + path + "depth_step_min_m ≥ 0 are required");
   if (concave_angle_deg <= 0 || concave_angle_deg >= 90)
-    throw Error("segmenter.concave_angle_deg must lie in (0, 90)");
+    throw Error(path + "concave_angle_deg must lie in (0, 90)");
   if (normal_window != 1 && normal_window != 3 && normal_window != 5 && normal_window != 7)
-    throw Error("segmenter.normal_window must be 1, 3, 5 or 7");
-  if (concave_span_px < 1) throw Error("segmenter.concave_span_px must be at least 1");
+    throw Error(path + "normal_window must be 1, 3, 5 or 7");
+  if (concave_span_px < 1) throw Error(path + "concave_span_px must be at least 1");
   if (min_size < 1 || grow_passes < 0 || max_grow_depth_ratio <= 0)
-    throw Error("segmenter: min_size ≥ 1, grow_passes ≥ 0 and max_grow_depth_ratio > 0");
+    throw Error(path + "min_size ≥ 1, " + path + "grow_passes ≥ 0 and " + path +
+                "max_grow_depth_ratio > 0");
 }
 
 GeometricSegmenter::GeometricSegmenter(const GeometricSegmenterOptions& options,

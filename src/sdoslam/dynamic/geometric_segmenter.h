@@ -1,6 +1,7 @@
 #pragma once
 
 #include <opencv2/core.hpp>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -32,7 +33,8 @@ struct GeometricSegmenterOptions {
   int min_size = 30;                   // px at work resolution; smaller regions join a neighbour
   int grow_passes = 6;                 // passes that give edge and hole pixels a segment
   double max_grow_depth_ratio = 0.15;  // an edge pixel joins only a segment this near in depth
-  void Check() const;
+  void Check(const std::string& path =
+                 "dynamic.segmenter.geometric.") const;  // Error names path + setting
 
   // Calls visit(key, member) for every setting: one list of config keys for reading and writing.
   template <class Options, class Visitor>

@@ -7,13 +7,12 @@
 
 namespace sdoslam {
 
-void MotionBoundaryOptions::Check() const {
-  if (!(k_magnitude > 0)) throw Error("motion_boundaries.k_magnitude must be positive");
-  if (!(k_orientation > 0)) throw Error("motion_boundaries.k_orientation must be positive");
-  if (!(strong > 0 && strong < 1)) throw Error("motion_boundaries.strong must be in (0, 1)");
-  if (!(threshold > 0 && threshold < 1))
-    throw Error("motion_boundaries.threshold must be in (0, 1)");
-  if (!(min_flow_for_angle >= 0)) throw Error("motion_boundaries.min_flow_for_angle must be >= 0");
+void MotionBoundaryOptions::Check(const std::string& path) const {
+  if (!(k_magnitude > 0)) throw Error(path + "k_magnitude must be positive");
+  if (!(k_orientation > 0)) throw Error(path + "k_orientation must be positive");
+  if (!(strong > 0 && strong < 1)) throw Error(path + "strong must be in (0, 1)");
+  if (!(threshold > 0 && threshold < 1)) throw Error(path + "threshold must be in (0, 1)");
+  if (!(min_flow_for_angle >= 0)) throw Error(path + "min_flow_for_angle must be >= 0");
 }
 
 MotionBoundaries ComputeMotionBoundaries(const cv::Mat& flow,

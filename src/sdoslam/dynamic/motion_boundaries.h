@@ -1,6 +1,7 @@
 #pragma once
 
 #include <opencv2/core.hpp>
+#include <string>
 
 namespace sdoslam {
 
@@ -17,7 +18,15 @@ struct MotionBoundaryOptions {
   double threshold = 0.5;      // boundary where M exceeds this
   // Flow vectors shorter than this (px) have no reliable direction: δθ counts as 0 there.
   double min_flow_for_angle = 0.5;
-  void Check() const;
+  void Check(const std::string& path = "dynamic.boundaries.") const;  // Error names path + setting
+  template <class Options, class Visitor>
+  static void VisitFields(Options& o, Visitor&& visit) {
+    visit("k_magnitude", o.k_magnitude);
+    visit("k_orientation", o.k_orientation);
+    visit("strong", o.strong);
+    visit("threshold", o.threshold);
+    visit("min_flow_for_angle", o.min_flow_for_angle);
+  }
 };
 
 struct MotionBoundaries {

@@ -28,12 +28,12 @@ const char* ToString(DynamicLabel label) {
   return "?";
 }
 
-void RgbdSegmenterOptions::Check() const {
-  if (work_width < 16) throw Error("segmenter.work_width must be at least 16");
+void RgbdSegmenterOptions::Check(const std::string& path) const {
+  if (work_width < 16) throw Error(path + "work_width must be at least 16");
   if (sigma < 0 || k <= 0 || min_size < 1)
-    throw Error("segmenter: sigma ≥ 0, k > 0 and min_size ≥ 1 are required");
+    throw Error(path + "sigma ≥ 0, " + path + "k > 0 and " + path + "min_size ≥ 1 are required");
   if (colour_weight < 0 || depth_weight < 0 || colour_weight + depth_weight <= 0)
-    throw Error("segmenter: colour_weight and depth_weight must be ≥ 0, not both 0");
+    throw Error(path + "colour_weight and " + path + "depth_weight must be ≥ 0, not both 0");
 }
 
 struct RgbdSegmenter::Impl {

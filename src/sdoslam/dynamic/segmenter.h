@@ -35,7 +35,17 @@ struct RgbdSegmenterOptions {
   int min_size = 50;            // px at work resolution; smaller segments are merged
   double colour_weight = 0.5;   // per Lab unit
   double depth_weight = 200.0;  // per unit of log(depth): 0.1 ≈ a 10 % step
-  void Check() const;
+  void Check(
+      const std::string& path = "dynamic.segmenter.rgbd.") const;  // Error names path + setting
+  template <class Options, class Visitor>
+  static void VisitFields(Options& o, Visitor&& visit) {
+    visit("work_width", o.work_width);
+    visit("sigma", o.sigma);
+    visit("k", o.k);
+    visit("min_size", o.min_size);
+    visit("colour_weight", o.colour_weight);
+    visit("depth_weight", o.depth_weight);
+  }
 };
 
 class RgbdSegmenter : public Segmenter {

@@ -11,12 +11,13 @@
 
 namespace sdoslam {
 
-void YoloSegOptions::Check() const {
+void YoloSegOptions::Check(const std::string& path) const {
   if (score_threshold < 0 || score_threshold > 1 || mask_threshold <= 0 || mask_threshold >= 1)
-    throw Error("segmenter: score_threshold in [0, 1] and mask_threshold in (0, 1) are required");
-  if (nms_iou <= 0 || nms_iou > 1) throw Error("segmenter.nms_iou must be in (0, 1]");
+    throw Error(path + "score_threshold in [0, 1] and " + path +
+                "mask_threshold in (0, 1) are required");
+  if (nms_iou <= 0 || nms_iou > 1) throw Error(path + "nms_iou must be in (0, 1]");
   if (max_instances < 1 || max_instances > 65535)
-    throw Error("segmenter.max_instances must be in [1, 65535]");
+    throw Error(path + "max_instances must be in [1, 65535]");
 }
 
 struct OnnxYoloSegSegmenter::Impl {

@@ -2,6 +2,7 @@
 
 #include <filesystem>
 #include <memory>
+#include <string>
 
 #include "sdoslam/dynamic/segmenter.h"
 
@@ -18,7 +19,15 @@ struct YoloSegOptions {
   double nms_iou = 0.5;
   double mask_threshold = 0.5;
   int max_instances = 64;
-  void Check() const;
+  void Check(
+      const std::string& path = "dynamic.segmenter.yoloseg.") const;  // Error names path + setting
+  template <class Options, class Visitor>
+  static void VisitFields(Options& o, Visitor&& visit) {
+    visit("score_threshold", o.score_threshold);
+    visit("nms_iou", o.nms_iou);
+    visit("mask_threshold", o.mask_threshold);
+    visit("max_instances", o.max_instances);
+  }
 };
 
 class OnnxYoloSegSegmenter : public Segmenter {

@@ -21,16 +21,17 @@ bool Stronger(const cv::KeyPoint& a, const cv::KeyPoint& b) {
 
 }  // namespace
 
-void OrbOptions::Check() const {
+void OrbOptions::Check(const std::string& path) const {
   if (num_features < 10 || num_features > 100000)
-    throw Error("orb.num_features must be in 10..100000");
+    throw Error(path + "num_features must be in 10..100000");
   if (!(scale_factor > 1.0 && scale_factor < 2.0))
-    throw Error("orb.scale_factor must be in (1, 2)");
-  if (num_levels < 1 || num_levels > 16) throw Error("orb.num_levels must be in 1..16");
+    throw Error(path + "scale_factor must be in (1, 2)");
+  if (num_levels < 1 || num_levels > 16) throw Error(path + "num_levels must be in 1..16");
   if (fast_threshold < 1 || min_fast_threshold < 1 || min_fast_threshold > fast_threshold) {
-    throw Error("orb.fast_threshold and orb.min_fast_threshold must satisfy 1 <= min <= initial");
+    throw Error(path + "fast_threshold and " + path +
+                "min_fast_threshold must satisfy 1 <= min <= initial");
   }
-  if (detection_cell < 10) throw Error("orb.detection_cell must be >= 10 pixels");
+  if (detection_cell < 10) throw Error(path + "detection_cell must be >= 10 pixels");
 }
 
 std::vector<cv::KeyPoint> DistributeEvenly(const std::vector<cv::KeyPoint>& keypoints,

@@ -3,6 +3,7 @@
 #include <cstring>
 #include <opencv2/core.hpp>
 #include <opencv2/features2d.hpp>
+#include <string>
 #include <vector>
 
 namespace sdoslam {
@@ -14,7 +15,18 @@ struct OrbOptions {
   int fast_threshold = 20;     // FAST threshold tried first in each grid cell...
   int min_fast_threshold = 7;  // ...and this one where the first finds nothing (low texture)
   int detection_cell = 35;     // pixels: FAST runs per cell so that every cell gets a chance
-  void Check() const;
+  // Throws Error naming the setting by its config path, `path` its section's ("orb.").
+  void Check(const std::string& path = "orb.") const;
+  // Every setting, as its config key (core/config.h: ReadFields, WriteFields).
+  template <class Options, class Visitor>
+  static void VisitFields(Options& o, Visitor&& visit) {
+    visit("num_features", o.num_features);
+    visit("scale_factor", o.scale_factor);
+    visit("num_levels", o.num_levels);
+    visit("fast_threshold", o.fast_threshold);
+    visit("min_fast_threshold", o.min_fast_threshold);
+    visit("detection_cell", o.detection_cell);
+  }
 };
 
 // ORB features as ORB-SLAM uses them: an image pyramid, FAST corners per grid cell with an

@@ -13,16 +13,17 @@
 
 namespace sdoslam {
 
-void LoopClosingOptions::Check() const {
-  if (min_keyframes_between < 1) throw Error("loop_closing.min_keyframes_between must be >= 1");
-  if (consistent_detections < 0) throw Error("loop_closing.consistent_detections must be >= 0");
-  if (min_matches < 3) throw Error("loop_closing.min_matches must be >= 3");
-  if (min_inliers < 3) throw Error("loop_closing.min_inliers must be >= 3");
+void LoopClosingOptions::Check(const std::string& path) const {
+  if (min_keyframes_between < 1) throw Error(path + "min_keyframes_between must be >= 1");
+  if (consistent_detections < 0) throw Error(path + "consistent_detections must be >= 0");
+  if (min_matches < 3) throw Error(path + "min_matches must be >= 3");
+  if (min_inliers < 3) throw Error(path + "min_inliers must be >= 3");
   if (min_projected_inliers < min_inliers)
-    throw Error("loop_closing.min_projected_inliers must be >= loop_closing.min_inliers");
-  if (essential_min_weight < 1) throw Error("loop_closing.essential_min_weight must be >= 1");
-  ransac.Check();
-  pose_graph.Check();
+    throw Error(path + "min_projected_inliers must be >= " + path + "min_inliers");
+  if (essential_min_weight < 1) throw Error(path + "essential_min_weight must be >= 1");
+  ransac.Check(path + "ransac.");
+  pose_graph.Check(path + "pose_graph.");
+  global_ba.Check(path + "global_ba.");
 }
 
 namespace {

@@ -5,6 +5,7 @@
 #include <map>
 #include <mutex>
 #include <set>
+#include <string>
 #include <vector>
 
 #include "sdoslam/map/map.h"
@@ -44,7 +45,22 @@ struct LoopClosingOptions {
   // both visits see. Threaded, it is solved without the map lock.
   bool global_bundle_adjustment = true;
   BundleAdjustmentOptions global_ba{10, 10};
-  void Check() const;
+  void Check(const std::string& path = "loop_closing.") const;  // Error names path + setting
+  // Every setting, as its config key (core/config.h: ReadFields, WriteFields).
+  template <class Options, class Visitor>
+  static void VisitFields(Options& o, Visitor&& visit) {
+    visit("enabled", o.enabled);
+    visit("min_keyframes_between", o.min_keyframes_between);
+    visit("consistent_detections", o.consistent_detections);
+    visit("min_matches", o.min_matches);
+    visit("min_inliers", o.min_inliers);
+    visit("min_projected_inliers", o.min_projected_inliers);
+    visit("essential_min_weight", o.essential_min_weight);
+    visit("ransac", o.ransac);
+    visit("pose_graph", o.pose_graph);
+    visit("global_bundle_adjustment", o.global_bundle_adjustment);
+    visit("global_ba", o.global_ba);
+  }
 };
 
 // One loop closed, for the run log.

@@ -13,16 +13,18 @@
 
 namespace sdoslam {
 
-void LocalMapperOptions::Check() const {
-  if (fuse_neighbours < 0) throw Error("mapping.fuse_neighbours must be >= 0");
+void LocalMapperOptions::Check(const std::string& path) const {
+  if (fuse_neighbours < 0) throw Error(path + "fuse_neighbours must be >= 0");
   if (!(min_found_ratio >= 0 && min_found_ratio < 1))
-    throw Error("mapping.min_found_ratio must be in [0, 1)");
+    throw Error(path + "min_found_ratio must be in [0, 1)");
   if (!(redundant_ratio > 0 && redundant_ratio <= 1))
-    throw Error("mapping.redundant_ratio must be in (0, 1]");
-  if (local_keyframes < 1) throw Error("mapping.local_keyframes must be >= 1");
-  if (fixed_keyframes < 0) throw Error("mapping.fixed_keyframes must be >= 0");
-  if (max_ba_observations < 1) throw Error("mapping.max_ba_observations must be >= 1");
-  if (triangulation_neighbours < 1) throw Error("mapping.triangulation_neighbours must be >= 1");
+    throw Error(path + "redundant_ratio must be in (0, 1]");
+  if (local_keyframes < 1) throw Error(path + "local_keyframes must be >= 1");
+  if (fixed_keyframes < 0) throw Error(path + "fixed_keyframes must be >= 0");
+  if (max_ba_observations < 1) throw Error(path + "max_ba_observations must be >= 1");
+  if (triangulation_neighbours < 1) throw Error(path + "triangulation_neighbours must be >= 1");
+  if (max_queued_keyframes < 1) throw Error(path + "max_queued_keyframes must be >= 1");
+  bundle_adjustment.Check(path + "bundle_adjustment.");
 }
 
 LocalMapper::LocalMapper(Map* map, const LocalMapperOptions& options)

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <mutex>
+#include <string>
 #include <vector>
 
 #include "sdoslam/map/map.h"
@@ -27,7 +28,22 @@ struct LocalMapperOptions {
   // keyframes only while their observations stay within it.
   int max_ba_observations = 10000;
   BundleAdjustmentOptions bundle_adjustment;
-  void Check() const;
+  // Threaded mapping (System): tracking makes no keyframe while this many wait for local mapping.
+  int max_queued_keyframes = 3;
+  void Check(const std::string& path = "mapping.") const;  // Error names path + setting
+  // Every setting, as its config key (core/config.h: ReadFields, WriteFields).
+  template <class Options, class Visitor>
+  static void VisitFields(Options& o, Visitor&& visit) {
+    visit("fuse_neighbours", o.fuse_neighbours);
+    visit("triangulation_neighbours", o.triangulation_neighbours);
+    visit("min_found_ratio", o.min_found_ratio);
+    visit("redundant_ratio", o.redundant_ratio);
+    visit("local_keyframes", o.local_keyframes);
+    visit("fixed_keyframes", o.fixed_keyframes);
+    visit("max_ba_observations", o.max_ba_observations);
+    visit("bundle_adjustment", o.bundle_adjustment);
+    visit("max_queued_keyframes", o.max_queued_keyframes);
+  }
 };
 
 // Statistics of one processed keyframe, for the run log.

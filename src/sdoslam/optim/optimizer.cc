@@ -4,6 +4,8 @@
 #include <cmath>
 #include <memory>
 
+#include "sdoslam/core/error.h"
+
 namespace sdoslam {
 namespace {
 
@@ -83,6 +85,12 @@ PoseOptimizationResult OptimizePose(const PinholeIntrinsics& k, const Eigen::Iso
   result.num_inliers = 0;
   for (bool b : result.inlier) result.num_inliers += b;
   return result;
+}
+
+void BundleAdjustmentOptions::Check(const std::string& path) const {
+  // Ceres refuses a negative iteration count (its solve would fail without a word).
+  if (iterations < 0) throw Error(path + "iterations must be >= 0");
+  if (refine_iterations < 0) throw Error(path + "refine_iterations must be >= 0");
 }
 
 std::vector<bool> BundleAdjust(const PinholeIntrinsics& k, BundleAdjustmentProblem* ba,

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <string>
 #include <vector>
 
 #include "sdoslam/core/geometry.h"
@@ -49,6 +50,13 @@ struct BundleAdjustmentStats {
 struct BundleAdjustmentOptions {
   int iterations = 5;          // first pass, all observations with Huber loss
   int refine_iterations = 10;  // second pass without the outliers of the first
+  void Check(const std::string& path = "mapping.bundle_adjustment.") const;  // both >= 0
+  // Every setting, as its config key (core/config.h: ReadFields, WriteFields).
+  template <class Options, class Visitor>
+  static void VisitFields(Options& o, Visitor&& visit) {
+    visit("iterations", o.iterations);
+    visit("refine_iterations", o.refine_iterations);
+  }
 };
 
 // Local bundle adjustment: poses (not fixed) and points jointly. Returns per observation whether

@@ -80,10 +80,10 @@ void PoseGraphProblem::Check() const {
   }
 }
 
-void PoseGraphOptions::Check() const {
-  if (max_iterations < 1) throw Error("pose_graph.max_iterations must be >= 1");
+void PoseGraphOptions::Check(const std::string& path) const {
+  if (max_iterations < 1) throw Error(path + "max_iterations must be >= 1");
   if (!(rotation_weight > 0 && std::isfinite(rotation_weight)))
-    throw Error("pose_graph.rotation_weight must be positive and finite");
+    throw Error(path + "rotation_weight must be positive and finite");
 }
 
 PoseGraphSummary OptimizePoseGraph(PoseGraphProblem* graph, const PoseGraphOptions& options) {

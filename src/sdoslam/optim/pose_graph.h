@@ -1,6 +1,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <string>
 #include <vector>
 
 namespace sdoslam {
@@ -33,7 +34,14 @@ struct PoseGraphOptions {
   // degrees apart and odometry drifts ~1 % in both, so neither part dominates.
   double rotation_weight = 1.0;
 
-  void Check() const;  // throws Error
+  // Throws Error naming the setting as path + name (loop closing passes its config path).
+  void Check(const std::string& path = "pose_graph.") const;
+  // Every setting, as its config key (core/config.h: ReadFields, WriteFields).
+  template <class Options, class Visitor>
+  static void VisitFields(Options& o, Visitor&& visit) {
+    visit("max_iterations", o.max_iterations);
+    visit("rotation_weight", o.rotation_weight);
+  }
 };
 
 struct PoseGraphSummary {

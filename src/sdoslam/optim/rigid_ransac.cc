@@ -108,14 +108,14 @@ std::vector<int> Indices(const std::vector<bool>& inlier) {
 
 }  // namespace
 
-void RigidRansacOptions::Check() const {
-  if (max_iterations < 1) throw Error("rigid_ransac.max_iterations must be >= 1");
-  if (!(confidence > 0 && confidence < 1)) throw Error("rigid_ransac.confidence must be in (0, 1)");
+void RigidRansacOptions::Check(const std::string& path) const {
+  if (max_iterations < 1) throw Error(path + "max_iterations must be >= 1");
+  if (!(confidence > 0 && confidence < 1)) throw Error(path + "confidence must be in (0, 1)");
   if (!(inlier_base > 0 && std::isfinite(inlier_base)))
-    throw Error("rigid_ransac.inlier_base must be > 0 (metres)");
+    throw Error(path + "inlier_base must be > 0 (metres)");
   if (!(inlier_per_depth2 >= 0 && std::isfinite(inlier_per_depth2)))
-    throw Error("rigid_ransac.inlier_per_depth2 must be >= 0 (1/metres)");
-  if (min_inliers < 3) throw Error("rigid_ransac.min_inliers must be >= 3");
+    throw Error(path + "inlier_per_depth2 must be >= 0 (1/metres)");
+  if (min_inliers < 3) throw Error(path + "min_inliers must be >= 3");
 }
 
 RigidRansacResult EstimateRigidTransformRansac(const std::vector<Eigen::Vector3d>& a,

@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 namespace sdoslam {
@@ -26,7 +27,18 @@ struct RigidRansacOptions {
   int min_inliers = 20;
   uint32_t seed = 1;  // of the sampler: the result is a function of the input and the seed
 
-  void Check() const;  // throws Error
+  // Throws Error naming the setting as path + name (loop closing passes its config path).
+  void Check(const std::string& path = "rigid_ransac.") const;
+  // Every setting, as its config key (core/config.h: ReadFields, WriteFields).
+  template <class Options, class Visitor>
+  static void VisitFields(Options& o, Visitor&& visit) {
+    visit("max_iterations", o.max_iterations);
+    visit("confidence", o.confidence);
+    visit("inlier_base", o.inlier_base);
+    visit("inlier_per_depth2", o.inlier_per_depth2);
+    visit("min_inliers", o.min_inliers);
+    visit("seed", o.seed);
+  }
 };
 
 struct RigidRansacResult {

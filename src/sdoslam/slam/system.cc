@@ -14,68 +14,51 @@
 
 namespace sdoslam {
 
-void SlamOptions::Check() const {
-  orb.Check();
-  tracking.Check();
-  mapping.Check();
-  loop_closing.Check();
-  if (!(bf > 0)) throw Error("rgbd.bf must be positive");
-  if (!(close_depth_baselines > 0)) throw Error("rgbd.close_depth_baselines must be positive");
-  if (max_queued_keyframes < 1) throw Error("mapping.max_queued_keyframes must be >= 1");
+void RgbdOptions::Check(const std::string& path) const {
+  if (!(bf > 0)) throw Error(path + "bf must be positive");
+  if (!(close_depth_baselines > 0)) throw Error(path + "close_depth_baselines must be positive");
 }
+
+void SlamOptions::Check() const {
+  orb.Check("orb.");
+  rgbd.Check("rgbd.");
+  tracking.Check("tracking.");
+  mapping.Check("mapping.");
+  loop_closing.Check("loop_closing.");
+}
+
+namespace {
+
+// The keys that moved when the config's paths became the options' own (issue 16). A section
+// entry moves every key below it; the more specific entry wins.
+constexpr ConfigAlias kSlamAliases[] = {
+    {"consistency", "tracking.consistency"},
+    {"consistency.static_motion", "tracking.consistency.static_motion.enabled"},
+    {"consistency.static_motion_grid_columns", "tracking.consistency.static_motion.grid_columns"},
+    {"consistency.static_motion_grid_rows", "tracking.consistency.static_motion.grid_rows"},
+    {"consistency.static_motion_min_corner_strength",
+     "tracking.consistency.static_motion.min_corner_strength"},
+    {"consistency.static_motion_hypotheses", "tracking.consistency.static_motion.hypotheses"},
+    {"consistency.static_motion_inlier_px", "tracking.consistency.static_motion.inlier_px"},
+    {"consistency.static_motion_min_gain", "tracking.consistency.static_motion.min_gain"},
+    {"consistency.static_motion_min_extra_samples",
+     "tracking.consistency.static_motion.min_extra_samples"},
+    {"consistency.static_motion_min_correspondences",
+     "tracking.consistency.static_motion.min_correspondences"},
+    {"consistency.static_motion_seed", "tracking.consistency.static_motion.seed"},
+    {"mapping.ba_iterations", "mapping.bundle_adjustment.iterations"},
+    {"mapping.ba_refine_iterations", "mapping.bundle_adjustment.refine_iterations"},
+    {"loop_closing.vocabulary", "vocabulary"},
+};
+
+}  // namespace
+
+std::span<const ConfigAlias> SlamOptionAliases() { return kSlamAliases; }
 
 SlamOptions ReadSlamOptions(ConfigMap& root) {
   SlamOptions o;
-  if (auto s = root.Section("orb")) {
-    s->Read("num_features", &o.orb.num_features);
-    s->Read("scale_factor", &o.orb.scale_factor);
-    s->Read("num_levels", &o.orb.num_levels);
-    s->Read("fast_threshold", &o.orb.fast_threshold);
-    s->Read("min_fast_threshold", &o.orb.min_fast_threshold);
-    s->RejectUnknownKeys();
-  }
-  if (auto s = root.Section("rgbd")) {
-    s->Read("bf", &o.bf);
-    s->Read("close_depth_baselines", &o.close_depth_baselines);
-    s->RejectUnknownKeys();
-  }
-  if (auto s = root.Section("tracking")) {
-    s->Read("min_inliers", &o.tracking.min_inliers);
-    s->Read("max_frames_between_keyframes", &o.tracking.max_frames_between_keyframes);
-    s->Read("reference_ratio", &o.tracking.reference_ratio);
-    s->Read("projection_radius", &o.tracking.projection_radius);
-    s->Read("relocalization_candidates", &o.tracking.relocalization_candidates);
-    s->Read("relocalization_place_candidates", &o.tracking.relocalization_place_candidates);
-    s->Read("relocalization_prior_frames", &o.tracking.relocalization_prior_frames);
-    s->Read("relocalization_radius_factor", &o.tracking.relocalization_radius_factor);
-    s->RejectUnknownKeys();
-  }
-  if (auto s = root.Section("consistency")) {
-    SceneFlowOptions::VisitFields(o.tracking.consistency,
-                                  [&](const char* key, auto& value) { s->Read(key, &value); });
-    s->RejectUnknownKeys();
-  }
-  if (auto s = root.Section("mapping")) {
-    s->Read("fuse_neighbours", &o.mapping.fuse_neighbours);
-    s->Read("redundant_ratio", &o.mapping.redundant_ratio);
-    s->Read("local_keyframes", &o.mapping.local_keyframes);
-    s->Read("fixed_keyframes", &o.mapping.fixed_keyframes);
-    s->Read("max_ba_observations", &o.mapping.max_ba_observations);
-    s->Read("ba_iterations", &o.mapping.bundle_adjustment.iterations);
-    s->Read("ba_refine_iterations", &o.mapping.bundle_adjustment.refine_iterations);
-    s->RejectUnknownKeys();
-  }
-  if (auto s = root.Section("loop_closing")) {
-    s->Read("enabled", &o.loop_closing.enabled);
-    s->Read("vocabulary", &o.vocabulary);
-    s->Read("min_keyframes_between", &o.loop_closing.min_keyframes_between);
-    s->Read("consistent_detections", &o.loop_closing.consistent_detections);
-    s->Read("min_matches", &o.loop_closing.min_matches);
-    s->Read("min_inliers", &o.loop_closing.min_inliers);
-    s->Read("min_projected_inliers", &o.loop_closing.min_projected_inliers);
-    s->Read("essential_min_weight", &o.loop_closing.essential_min_weight);
-    s->RejectUnknownKeys();
-  }
+  root.ApplyAliases(SlamOptionAliases(), ListFields<SlamOptions>());
+  ReadFields(root, &o);
   try {
     o.Check();
   } catch (const Error& e) {
@@ -84,55 +67,14 @@ SlamOptions ReadSlamOptions(ConfigMap& root) {
   return o;
 }
 
-void WriteSlamOptions(const SlamOptions& o, YAML::Emitter* out) {
-  YAML::Emitter& y = *out;
-  y << YAML::Key << "orb" << YAML::Value << YAML::BeginMap << YAML::Key << "num_features"
-    << YAML::Value << o.orb.num_features << YAML::Key << "scale_factor" << YAML::Value
-    << o.orb.scale_factor << YAML::Key << "num_levels" << YAML::Value << o.orb.num_levels
-    << YAML::Key << "fast_threshold" << YAML::Value << o.orb.fast_threshold << YAML::Key
-    << "min_fast_threshold" << YAML::Value << o.orb.min_fast_threshold << YAML::EndMap;
-  y << YAML::Key << "rgbd" << YAML::Value << YAML::BeginMap << YAML::Key << "bf" << YAML::Value
-    << o.bf << YAML::Key << "close_depth_baselines" << YAML::Value << o.close_depth_baselines
-    << YAML::EndMap;
-  y << YAML::Key << "tracking" << YAML::Value << YAML::BeginMap << YAML::Key << "min_inliers"
-    << YAML::Value << o.tracking.min_inliers << YAML::Key << "max_frames_between_keyframes"
-    << YAML::Value << o.tracking.max_frames_between_keyframes << YAML::Key
-    << "relocalization_candidates" << YAML::Value << o.tracking.relocalization_candidates
-    << YAML::Key << "relocalization_place_candidates" << YAML::Value
-    << o.tracking.relocalization_place_candidates << YAML::Key << "relocalization_prior_frames"
-    << YAML::Value << o.tracking.relocalization_prior_frames << YAML::Key
-    << "relocalization_radius_factor" << YAML::Value << o.tracking.relocalization_radius_factor
-    << YAML::Key << "reference_ratio" << YAML::Value << o.tracking.reference_ratio << YAML::Key
-    << "projection_radius" << YAML::Value << o.tracking.projection_radius << YAML::EndMap;
-  y << YAML::Key << "consistency" << YAML::Value << YAML::BeginMap;
-  SceneFlowOptions::VisitFields(o.tracking.consistency, [&](const char* key, const auto& value) {
-    y << YAML::Key << key << YAML::Value << value;
-  });
-  y << YAML::EndMap;
-  y << YAML::Key << "mapping" << YAML::Value << YAML::BeginMap << YAML::Key << "fuse_neighbours"
-    << YAML::Value << o.mapping.fuse_neighbours << YAML::Key << "redundant_ratio" << YAML::Value
-    << o.mapping.redundant_ratio << YAML::Key << "local_keyframes" << YAML::Value
-    << o.mapping.local_keyframes << YAML::Key << "fixed_keyframes" << YAML::Value
-    << o.mapping.fixed_keyframes << YAML::Key << "max_ba_observations" << YAML::Value
-    << o.mapping.max_ba_observations << YAML::Key << "ba_iterations" << YAML::Value
-    << o.mapping.bundle_adjustment.iterations << YAML::Key << "ba_refine_iterations" << YAML::Value
-    << o.mapping.bundle_adjustment.refine_iterations << YAML::EndMap;
-  const LoopClosingOptions& l = o.loop_closing;
-  y << YAML::Key << "loop_closing" << YAML::Value << YAML::BeginMap << YAML::Key << "enabled"
-    << YAML::Value << l.enabled << YAML::Key << "vocabulary" << YAML::Value << o.vocabulary
-    << YAML::Key << "min_keyframes_between" << YAML::Value << l.min_keyframes_between << YAML::Key
-    << "consistent_detections" << YAML::Value << l.consistent_detections << YAML::Key
-    << "min_matches" << YAML::Value << l.min_matches << YAML::Key << "min_inliers" << YAML::Value
-    << l.min_inliers << YAML::Key << "min_projected_inliers" << YAML::Value
-    << l.min_projected_inliers << YAML::Key << "essential_min_weight" << YAML::Value
-    << l.essential_min_weight << YAML::EndMap;
-}
+void WriteSlamOptions(const SlamOptions& o, YAML::Emitter* out) { WriteFields(o, out); }
 
 System::System(const CameraOptions& camera, const SlamOptions& options)
     : options_(options), extractor_((options.Check(), options.orb)) {
   const Camera cam(camera);
   geometry_ = std::make_shared<FrameGeometry>(
-      cam, extractor_, options_.bf, options_.close_depth_baselines * options_.bf / camera.fx);
+      cam, extractor_, options_.rgbd.bf,
+      options_.rgbd.close_depth_baselines * options_.rgbd.bf / camera.fx);
   map_ = std::make_unique<Map>();
   const Vocabulary* vocabulary = &DefaultVocabulary();
   if (!options_.vocabulary.empty()) {
@@ -292,7 +234,7 @@ TrackingResult System::Track(PreparedFrame&& prepared, FrameTiming* timing) {
   if (!options_.sequential) {
     std::lock_guard<std::mutex> lock(queue_mutex_);
     idle = queue_.empty() && !mapping_busy_;
-    accepts = static_cast<int>(queue_.size()) < options_.max_queued_keyframes;
+    accepts = static_cast<int>(queue_.size()) < options_.mapping.max_queued_keyframes;
   }
   TrackingResult result;
   {

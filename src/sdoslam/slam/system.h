@@ -5,6 +5,8 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <span>
+#include <string>
 #include <thread>
 
 #include "sdoslam/core/camera.h"
@@ -21,26 +23,57 @@ class Emitter;
 
 namespace sdoslam {
 
+// Depth as a virtual stereo pair (ORB-SLAM2's RGB-D frames), config section rgbd:.
+struct RgbdOptions {
+  double bf = 40.0;                     // virtual stereo baseline × fx (ORB-SLAM2's Kinect value)
+  double close_depth_baselines = 40.0;  // "close" = depth < this × baseline (≈3.1 m for TUM)
+  void Check(const std::string& path = "rgbd.") const;  // Error names path + setting
+  template <class Options, class Visitor>
+  static void VisitFields(Options& o, Visitor&& visit) {
+    visit("bf", o.bf);
+    visit("close_depth_baselines", o.close_depth_baselines);
+  }
+};
+
+// The SLAM's settings. In a config file they sit at the top level beside camera: and run:, each
+// at the path its VisitFields gives (orb.num_features, mapping.bundle_adjustment.iterations).
 struct SlamOptions {
   OrbOptions orb;
+  RgbdOptions rgbd;
   TrackerOptions tracking;
   LocalMapperOptions mapping;
   LoopClosingOptions loop_closing;
-  // Bag-of-words vocabulary for place recognition (sdoslam vocab build); empty: the one built
-  // into the library.
+  // Bag-of-words vocabulary for place recognition (sdoslam vocab build), for relocalization and
+  // loop closing alike; empty: the one built into the library.
   std::string vocabulary;
-  double bf = 40.0;                     // virtual stereo baseline × fx (ORB-SLAM2's Kinect value)
-  double close_depth_baselines = 40.0;  // "close" = depth < this × baseline (≈3.1 m for TUM)
   // true: local mapping runs inline after each keyframe, and runs are bit-identical.
   // false: it runs in its own thread, concurrently with feature extraction and tracking.
+  // Not among the settings below: how a run is driven is the run's (run.sequential in a run
+  // config, or --sequential), and library callers set it here.
   bool sequential = true;
-  int max_queued_keyframes = 3;  // threaded: tracking makes no keyframe while this many wait
   void Check() const;
+
+  template <class Options, class Visitor>
+  static void VisitFields(Options& o, Visitor&& visit) {
+    visit("orb", o.orb);
+    visit("rgbd", o.rgbd);
+    visit("tracking", o.tracking);
+    visit("mapping", o.mapping);
+    visit("loop_closing", o.loop_closing);
+    visit("vocabulary", o.vocabulary);
+  }
 };
 
-// Reads the optional sections orb:, rgbd:, tracking:, mapping: of a run config (the camera:
-// section is read by ReadCameraOptions); unknown keys are errors.
+// Keys of earlier versions that still read, with a warning: old dotted path -> new one.
+std::span<const ConfigAlias> SlamOptionAliases();
+
+// Reads the SLAM's settings (orb:, rgbd:, tracking:, mapping:, loop_closing:, vocabulary) from
+// the top level of a run config (the camera: section is read by ReadCameraOptions); deprecated
+// keys are read with a warning, unknown keys below these sections are errors, and the options
+// are checked.
 SlamOptions ReadSlamOptions(ConfigMap& root);
+// Writes them, each setting at its key, into an open YAML mapping (ReadSlamOptions reads it
+// back to the same options).
 void WriteSlamOptions(const SlamOptions& options, YAML::Emitter* out);
 
 // Timings of one frame, milliseconds.

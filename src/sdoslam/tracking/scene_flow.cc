@@ -8,37 +8,35 @@
 
 namespace sdoslam {
 
-void SceneFlowOptions::Check() const {
-  if (frame_gap < 1) throw Error("consistency.frame_gap must be >= 1");
+void SceneFlowOptions::Check(const std::string& path) const {
+  if (frame_gap < 1) throw Error(path + "frame_gap must be >= 1");
   if (retry_gap < 0 || (retry_gap > 0 && retry_gap >= frame_gap))
-    throw Error("consistency.retry_gap must be 0 or in [1, frame_gap - 1]");
-  if (!(min_flow >= 0)) throw Error("consistency.min_flow must be >= 0");
-  if (!(noise_sigmas > 0)) throw Error("consistency.noise_sigmas must be positive");
+    throw Error(path + "retry_gap must be 0 or in [1, frame_gap - 1]");
+  if (!(min_flow >= 0)) throw Error(path + "min_flow must be >= 0");
+  if (!(noise_sigmas > 0)) throw Error(path + "noise_sigmas must be positive");
   if (!(depth_noise_a >= 0) || !(depth_noise_b >= 0))
-    throw Error("consistency.depth_noise_a and depth_noise_b must be >= 0");
-  if (!(pixel_sigma >= 0)) throw Error("consistency.pixel_sigma must be >= 0");
+    throw Error(path + "depth_noise_a and " + path + "depth_noise_b must be >= 0");
+  if (!(pixel_sigma >= 0)) throw Error(path + "pixel_sigma must be >= 0");
   if (!(segment_ratio > 0 && segment_ratio < 1))
-    throw Error("consistency.segment_ratio must be in (0, 1)");
-  if (min_segment_features < 1) throw Error("consistency.min_segment_features must be >= 1");
-  if (max_iterations < 1) throw Error("consistency.max_iterations must be >= 1");
-  if (min_inliers_kept < 6) throw Error("consistency.min_inliers_kept must be >= 6");
+    throw Error(path + "segment_ratio must be in (0, 1)");
+  if (min_segment_features < 1) throw Error(path + "min_segment_features must be >= 1");
+  if (max_iterations < 1) throw Error(path + "max_iterations must be >= 1");
+  if (min_inliers_kept < 6) throw Error(path + "min_inliers_kept must be >= 6");
   if (!(min_established_kept >= 0 && min_established_kept <= 1))
-    throw Error("consistency.min_established_kept must be in [0, 1]");
-  if (established_observations < 1)
-    throw Error("consistency.established_observations must be >= 1");
+    throw Error(path + "min_established_kept must be in [0, 1]");
+  if (established_observations < 1) throw Error(path + "established_observations must be >= 1");
   if (track_window < 5 || track_window % 2 == 0)
-    throw Error("consistency.track_window must be odd and >= 5");
-  if (track_levels < 0 || track_levels > 6)
-    throw Error("consistency.track_levels must be in [0, 6]");
-  if (!(max_track_error > 0)) throw Error("consistency.max_track_error must be positive");
-  if (!(max_round_trip_px > 0)) throw Error("consistency.max_round_trip_px must be positive");
-  if (!(skip_round_trip_px >= 0)) throw Error("consistency.skip_round_trip_px must be >= 0");
-  if (cull_after < 1) throw Error("consistency.cull_after must be >= 1");
+    throw Error(path + "track_window must be odd and >= 5");
+  if (track_levels < 0 || track_levels > 6) throw Error(path + "track_levels must be in [0, 6]");
+  if (!(max_track_error > 0)) throw Error(path + "max_track_error must be positive");
+  if (!(max_round_trip_px > 0)) throw Error(path + "max_round_trip_px must be positive");
+  if (!(skip_round_trip_px >= 0)) throw Error(path + "skip_round_trip_px must be >= 0");
+  if (cull_after < 1) throw Error(path + "cull_after must be >= 1");
   if (depth_window_radius < 0 || depth_window_radius > 10)
-    throw Error("consistency.depth_window_radius must be in [0, 10]");
+    throw Error(path + "depth_window_radius must be in [0, 10]");
   if (!(max_segment_area > 0 && max_segment_area <= 1))
-    throw Error("consistency.max_segment_area must be in (0, 1]");
-  static_motion.Check();
+    throw Error(path + "max_segment_area must be in (0, 1]");
+  static_motion.Check(path + "static_motion.");
 }
 
 std::vector<uint8_t> LargeSegments(const cv::Mat& segment_image, double max_fraction) {

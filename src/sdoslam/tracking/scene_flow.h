@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
+#include <string>
 #include <vector>
 
 #include "sdoslam/tracking/static_motion.h"
@@ -89,9 +90,10 @@ struct SceneFlowOptions {
   // Before classifying, the rough pose is replaced by the motion that explains the largest
   // share of the image (static_motion.h), when that explains clearly more.
   StaticMotionOptions static_motion;
-  void Check() const;
+  void Check(
+      const std::string& path = "tracking.consistency.") const;  // Error names path + setting
 
-  // Calls visit(key, member) for every setting: one list of config keys for reading and writing.
+  // Every setting, as its config key (core/config.h: ReadFields, WriteFields).
   template <class Options, class Visitor>
   static void VisitFields(Options& o, Visitor&& visit) {
     visit("enabled", o.enabled);
@@ -117,16 +119,7 @@ struct SceneFlowOptions {
     visit("cull_after", o.cull_after);
     visit("depth_window_radius", o.depth_window_radius);
     visit("max_segment_area", o.max_segment_area);
-    visit("static_motion", o.static_motion.enabled);
-    visit("static_motion_grid_columns", o.static_motion.grid_columns);
-    visit("static_motion_grid_rows", o.static_motion.grid_rows);
-    visit("static_motion_min_corner_strength", o.static_motion.min_corner_strength);
-    visit("static_motion_hypotheses", o.static_motion.hypotheses);
-    visit("static_motion_inlier_px", o.static_motion.inlier_px);
-    visit("static_motion_min_gain", o.static_motion.min_gain);
-    visit("static_motion_min_extra_samples", o.static_motion.min_extra_samples);
-    visit("static_motion_min_correspondences", o.static_motion.min_correspondences);
-    visit("static_motion_seed", o.static_motion.seed);
+    visit("static_motion", o.static_motion);
   }
 };
 

@@ -10,18 +10,15 @@
 
 namespace sdoslam {
 
-void StaticMotionOptions::Check() const {
+void StaticMotionOptions::Check(const std::string& path) const {
   if (grid_columns < 2 || grid_rows < 2)
-    throw Error("consistency.static_motion_grid_columns and _grid_rows must be >= 2");
-  if (!(min_corner_strength >= 0))
-    throw Error("consistency.static_motion_min_corner_strength must be >= 0");
-  if (hypotheses < 1) throw Error("consistency.static_motion_hypotheses must be >= 1");
-  if (!(inlier_px > 0)) throw Error("consistency.static_motion_inlier_px must be positive");
-  if (!(min_gain >= 0)) throw Error("consistency.static_motion_min_gain must be >= 0");
-  if (min_extra_samples < 0)
-    throw Error("consistency.static_motion_min_extra_samples must be >= 0");
-  if (min_correspondences < 3)
-    throw Error("consistency.static_motion_min_correspondences must be >= 3");
+    throw Error(path + "grid_columns and " + path + "grid_rows must be >= 2");
+  if (!(min_corner_strength >= 0)) throw Error(path + "min_corner_strength must be >= 0");
+  if (hypotheses < 1) throw Error(path + "hypotheses must be >= 1");
+  if (!(inlier_px > 0)) throw Error(path + "inlier_px must be positive");
+  if (!(min_gain >= 0)) throw Error(path + "min_gain must be >= 0");
+  if (min_extra_samples < 0) throw Error(path + "min_extra_samples must be >= 0");
+  if (min_correspondences < 3) throw Error(path + "min_correspondences must be >= 3");
 }
 
 namespace {

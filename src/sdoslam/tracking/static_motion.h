@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <opencv2/core.hpp>
+#include <string>
 #include <vector>
 
 #include "sdoslam/core/geometry.h"
@@ -40,7 +41,21 @@ struct StaticMotionOptions {
   int min_extra_samples = 10;
   int min_correspondences = 30;
   uint32_t seed = 7;  // RANSAC draws; runs stay repeatable
-  void Check() const;
+  void Check(const std::string& path = "tracking.consistency.static_motion.") const;
+  // Every setting, as its config key (core/config.h: ReadFields, WriteFields).
+  template <class Options, class Visitor>
+  static void VisitFields(Options& o, Visitor&& visit) {
+    visit("enabled", o.enabled);
+    visit("grid_columns", o.grid_columns);
+    visit("grid_rows", o.grid_rows);
+    visit("min_corner_strength", o.min_corner_strength);
+    visit("hypotheses", o.hypotheses);
+    visit("inlier_px", o.inlier_px);
+    visit("min_gain", o.min_gain);
+    visit("min_extra_samples", o.min_extra_samples);
+    visit("min_correspondences", o.min_correspondences);
+    visit("seed", o.seed);
+  }
 };
 
 // One sample seen in a past frame and in this one.

@@ -16,23 +16,23 @@ const char* ToString(TrackingState state) {
   return "?";
 }
 
-void TrackerOptions::Check() const {
+void TrackerOptions::Check(const std::string& path) const {
   if (min_initial_depth_features < 10)
-    throw Error("tracking.min_initial_depth_features must be >= 10");
-  if (min_inliers < 6) throw Error("tracking.min_inliers must be >= 6");
+    throw Error(path + "min_initial_depth_features must be >= 10");
+  if (min_inliers < 6) throw Error(path + "min_inliers must be >= 6");
   if (max_frames_between_keyframes < 1)
-    throw Error("tracking.max_frames_between_keyframes must be >= 1");
+    throw Error(path + "max_frames_between_keyframes must be >= 1");
   if (!(reference_ratio > 0 && reference_ratio < 1))
-    throw Error("tracking.reference_ratio must be in (0, 1)");
-  if (!(projection_radius > 0)) throw Error("tracking.projection_radius must be positive");
-  if (relocalization_candidates < 0) throw Error("tracking.relocalization_candidates must be >= 0");
+    throw Error(path + "reference_ratio must be in (0, 1)");
+  if (!(projection_radius > 0)) throw Error(path + "projection_radius must be positive");
+  if (relocalization_candidates < 0) throw Error(path + "relocalization_candidates must be >= 0");
   if (relocalization_place_candidates < 0)
-    throw Error("tracking.relocalization_place_candidates must be >= 0");
+    throw Error(path + "relocalization_place_candidates must be >= 0");
   if (relocalization_prior_frames < 0)
-    throw Error("tracking.relocalization_prior_frames must be >= 0");
+    throw Error(path + "relocalization_prior_frames must be >= 0");
   if (!(relocalization_radius_factor >= 1))
-    throw Error("tracking.relocalization_radius_factor must be >= 1");
-  consistency.Check();
+    throw Error(path + "relocalization_radius_factor must be >= 1");
+  consistency.Check(path + "consistency.");
 }
 
 }  // namespace sdoslam

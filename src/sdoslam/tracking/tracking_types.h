@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <functional>
 #include <opencv2/core.hpp>
+#include <string>
 #include <vector>
 
 #include "sdoslam/tracking/scene_flow.h"
@@ -45,7 +46,23 @@ struct TrackerOptions {
   int relocalization_prior_frames = 30;
   double relocalization_radius_factor = 4.0;
   SceneFlowOptions consistency;  // the scene-flow consistency check and map hygiene
-  void Check() const;
+  void Check(const std::string& path = "tracking.") const;  // Error names path + setting
+  // Every setting, as its config key (core/config.h: ReadFields, WriteFields).
+  template <class Options, class Visitor>
+  static void VisitFields(Options& o, Visitor&& visit) {
+    visit("min_initial_depth_features", o.min_initial_depth_features);
+    visit("min_inliers", o.min_inliers);
+    visit("max_frames_between_keyframes", o.max_frames_between_keyframes);
+    visit("reference_ratio", o.reference_ratio);
+    visit("min_close_points", o.min_close_points);
+    visit("close_points_to_create", o.close_points_to_create);
+    visit("projection_radius", o.projection_radius);
+    visit("relocalization_candidates", o.relocalization_candidates);
+    visit("relocalization_place_candidates", o.relocalization_place_candidates);
+    visit("relocalization_prior_frames", o.relocalization_prior_frames);
+    visit("relocalization_radius_factor", o.relocalization_radius_factor);
+    visit("consistency", o.consistency);
+  }
 };
 
 // Label the consistency check gives the features it judges dynamic (the front end's labels are
