@@ -97,8 +97,16 @@ TEST_F(Interrupts, TwentyRandomInterruptsLeaveTheOldSetOrTheNewNeverAMix) {
       EXPECT_NO_THROW(VerifyResultSet(out));
     }
     if (!o.exited) {
-      // Killed before the handler was installed: the earlier set is untouched.
-      EXPECT_EQ(after, before);
+      // Killed by the signal's default action. Either it came before the handler was installed,
+      // and the earlier set is untouched; or it came after the run had written its set and given
+      // the handler back (the process was on its way out), and the folder holds that whole new
+      // set, verified above. A kill in between cannot happen: the handler defers an abort during
+      // the commit.
+      if (after != before) {
+        ASSERT_FALSE(after.empty());
+        // With one signal, a new set means the run had finished before the signal came.
+        if (!twice) EXPECT_EQ(VerifyResultSet(out).status, "complete");
+      }
       continue;
     }
     if (twice && o.code != 0 && after == before) {
