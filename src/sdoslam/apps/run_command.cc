@@ -189,7 +189,7 @@ void RunOverrides::AddTo(CLI::App* cmd) {
   cmd->add_option("--flow-model", flow_model, "ONNX file of a learned flow network (flow onnx)");
   cmd->add_option("--consistency", consistency,
                   "mode sdo: the scene-flow consistency check and map hygiene, on (default) or "
-                  "off; overrides consistency.enabled")
+                  "off; overrides tracking.consistency.enabled")
       ->check(CLI::IsMember({"on", "off"}));
 }
 
