@@ -1,6 +1,7 @@
 #include "sdoslam/apps/synth_command.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <iostream>
 #include <memory>
@@ -159,9 +160,9 @@ void AddSynthCommand(CLI::App& app) {
       ->check(CLI::Range(0, 64));
   cmd->add_flag("--exposure-changes", args->exposure_changes, "let the exposure drift");
   cmd->add_option("--background", args->background,
-                  "render the scenario's moving objects into this real static recording (TUM "
-                  "layout with groundtruth.txt); scenarios: static, carried_box, swinging_boxes, "
-                  "people, mixed");
+                  fmt::format("render the scenario's moving objects into this real static "
+                              "recording (TUM layout with groundtruth.txt); scenarios: {}",
+                              fmt::join(synth::BackgroundScenarioNames(), ", ")));
   cmd->add_option("--camera", args->camera,
                   "camera config of the --background recording (default: its camera.yaml)");
   cmd->add_flag("--forward-backward", args->forward_backward,
