@@ -7,10 +7,10 @@
 #include <memory>
 
 #include "sdoslam/apps/bench_matrix.h"
-#include "sdoslam/pipeline/pipeline.h"
 #include "sdoslam/apps/run_command.h"
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/memory.h"
+#include "sdoslam/pipeline/pipeline.h"
 #include "sdoslam/synth/scenarios.h"
 #include "sdoslam/synth/sequence.h"
 
@@ -92,6 +92,10 @@ void PrintBlocks(const RunSummary& s, const std::vector<BlockEnd>& blocks) {
       std::cout << fmt::format("; keyframe ATE {:.1f} mm ({} keyframes alive)",
                                1000 * s.keyframe_evaluation->ate.translation.rmse,
                                s.keyframe_trajectory.size());
+      if (s.keyframe_ate_in_frame_alignment) {
+        std::cout << fmt::format(", {:.1f} mm under the frames' alignment",
+                                 1000 * s.keyframe_ate_in_frame_alignment->translation.rmse);
+      }
     }
     std::cout << '\n';
   }

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <numeric>
+#include <optional>
 
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/timestamps.h"
@@ -116,8 +117,12 @@ TrajectoryMatch MatchTrajectories(const Trajectory& ground_truth, const Trajecto
   return match;
 }
 
-AteResult ComputeAte(const Trajectory& ground_truth, const Trajectory& estimate,
-                     const AteOptions& options) {
+namespace {
+
+// Matches the estimate to the ground truth; aligns it with `alignment`, or, without one, with
+// the least-squares alignment of options.alignment's kind.
+AteResult ComputeAteWith(const Trajectory& ground_truth, const Trajectory& estimate,
+                         const std::optional<Similarity>& alignment, const AteOptions& options) {
   options.Check();
   AteResult result;
   result.match =
@@ -129,13 +134,26 @@ AteResult ComputeAte(const Trajectory& ground_truth, const Trajectory& estimate,
     result.ground_truth.push_back(gt.T_world_camera.translation());
     est.push_back(estimate[result.match.estimate_index[k]].T_world_camera.translation());
   }
-  result.alignment = AlignPositions(est, result.ground_truth, options.alignment);
+  result.alignment =
+      alignment ? *alignment : AlignPositions(est, result.ground_truth, options.alignment);
   for (size_t k = 0; k < est.size(); ++k) {
     result.estimate_aligned.push_back(result.alignment.Apply(est[k]));
     result.errors.push_back((result.estimate_aligned[k] - result.ground_truth[k]).norm());
   }
   result.translation = ComputeErrorStats(result.errors);
   return result;
+}
+
+}  // namespace
+
+AteResult ComputeAte(const Trajectory& ground_truth, const Trajectory& estimate,
+                     const AteOptions& options) {
+  return ComputeAteWith(ground_truth, estimate, std::nullopt, options);
+}
+
+AteResult ComputeAteUnderAlignment(const Trajectory& ground_truth, const Trajectory& estimate,
+                                   const Similarity& alignment, const AteOptions& options) {
+  return ComputeAteWith(ground_truth, estimate, alignment, options);
 }
 
 DeltaUnit ParseDeltaUnit(const std::string& name) {

@@ -69,6 +69,13 @@ struct AteResult {
 AteResult ComputeAte(const Trajectory& ground_truth, const Trajectory& estimate,
                      const AteOptions& options = {});
 
+// ATE under an alignment found elsewhere (options.alignment is not used). A run's keyframes are
+// compared with its frames this way, under the frames' alignment: a dozen keyframes aligned on
+// their own spend the alignment's six degrees of freedom on their own noise and look better than
+// they are, next to thousands of frames for which the same fit costs nothing.
+AteResult ComputeAteUnderAlignment(const Trajectory& ground_truth, const Trajectory& estimate,
+                                   const Similarity& alignment, const AteOptions& options = {});
+
 enum class DeltaUnit { kFrames, kSeconds };
 DeltaUnit ParseDeltaUnit(const std::string& name);  // frames | f | s | seconds
 

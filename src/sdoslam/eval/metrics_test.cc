@@ -131,6 +131,57 @@ TEST(Ate, AlignmentIsTheLeastSquaresOptimum) {
   EXPECT_NEAR(ate.translation.rmse, 0.02 * std::sqrt(3.0), 0.004);
 }
 
+TEST(Ate, FewPosesAlignedOnTheirOwnLookBetterThanUnderTheFramesAlignment) {
+  // 3,000 frames and every 200th of them as a keyframe, all with the same noise (σ = 3 mm per
+  // axis) and in a frame moved by T. Aligned on its own, the 15-pose subset fits part of its
+  // noise; under the frames' alignment it shows the noise the frames have.
+  const Trajectory gt = WavyTrajectory(3000);
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() =
+      Eigen::AngleAxisd(0.7, Eigen::Vector3d(0.3, 1, -0.2).normalized()).toRotationMatrix();
+  T.translation() = Eigen::Vector3d(-1, 0.5, 2);
+  Trajectory frames = Transformed(gt, T);
+  std::mt19937 rng(11);
+  std::normal_distribution<double> noise(0.0, 0.003);
+  for (auto& p : frames)
+    p.T_world_camera.translation() += Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+  Trajectory keyframes;
+  for (size_t k = 0; k < frames.size(); k += 200) keyframes.push_back(frames[k]);
+  ASSERT_EQ(keyframes.size(), 15u);
+
+  const AteResult frame_ate = ComputeAte(gt, frames);
+  const AteResult own = ComputeAte(gt, keyframes);
+  const AteResult shared = ComputeAteUnderAlignment(gt, keyframes, frame_ate.alignment);
+  ASSERT_EQ(shared.translation.count, 15u);
+  // The shared alignment is the frames' own, and it is close to T's inverse.
+  EXPECT_TRUE(shared.alignment.rotation.isApprox(frame_ate.alignment.rotation, 1e-15));
+  EXPECT_TRUE(shared.alignment.rotation.isApprox(T.linear().transpose(), 1e-3));
+  // Each keyframe's error under it is the frame's error at that time.
+  for (size_t k = 0; k < keyframes.size(); ++k)
+    EXPECT_NEAR(shared.errors[k], frame_ate.errors[200 * k], 1e-12);
+  // Expected RMSE of the noise: 3·√3 = 5.2 mm. The frames show it; the keyframes aligned on
+  // their own show less (six parameters fitted to 45 coordinates), under the frames' alignment
+  // they do not.
+  EXPECT_NEAR(frame_ate.translation.rmse, 0.003 * std::sqrt(3.0), 0.0003);
+  EXPECT_LT(own.translation.rmse, shared.translation.rmse);
+  // How much less, on average: a rigid alignment fitted to n noisy positions takes six of their
+  // 3n degrees of freedom, E[own²] = (3n − 6)/(3n) · E[true²], 0.87 for 15 keyframes.
+  double own_sq = 0, true_sq = 0;
+  for (int trial = 0; trial < 400; ++trial) {
+    Trajectory noisy = keyframes;
+    for (size_t k = 0; k < noisy.size(); ++k) {
+      noisy[k].T_world_camera.translation() = T * gt[200 * k].T_world_camera.translation() +
+                                              Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+    }
+    own_sq += std::pow(ComputeAte(gt, noisy).translation.rmse, 2);
+    true_sq +=
+        std::pow(ComputeAteUnderAlignment(gt, noisy, frame_ate.alignment).translation.rmse, 2);
+  }
+  EXPECT_NEAR(own_sq / true_sq, (45.0 - 6.0) / 45.0, 0.03);
+  // An alignment given is used as it is: the identity leaves T in the error.
+  EXPECT_GT(ComputeAteUnderAlignment(gt, keyframes, Similarity{}).translation.rmse, 1.0);
+}
+
 TEST(Ate, Sim3RecoversScaleWhereSe3Cannot) {
   const Trajectory gt = WavyTrajectory(120);
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();

@@ -519,6 +519,8 @@ RunSummary RunOnDataset(const RunOptions& options) {
     if (summary.keyframe_trajectory.size() >= 3) {
       summary.keyframe_evaluation =
           EvaluateEstimate(gt, summary.keyframe_trajectory, "keyframes", {});
+      summary.keyframe_ate_in_frame_alignment = ComputeAteUnderAlignment(
+          gt, summary.keyframe_trajectory, summary.evaluation->ate.alignment);
     }
   }
   return summary;

@@ -181,6 +181,9 @@ struct RunSummary {
   Trajectory keyframe_trajectory;                // the keyframes alive at the end
   std::optional<EstimateEvaluation> evaluation;  // when the dataset has ground truth
   std::optional<EstimateEvaluation> keyframe_evaluation;
+  // The keyframes under the frames' alignment: the fair comparison of the two (see
+  // ComputeAteUnderAlignment).
+  std::optional<AteResult> keyframe_ate_in_frame_alignment;
   std::optional<MaskEvaluation>
       masks;  // when the dataset has ground-truth masks (not conventional)
 };

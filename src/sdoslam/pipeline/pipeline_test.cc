@@ -245,6 +245,11 @@ TEST_P(LongRun, FramePosesStayWithTheirKeyFramesAndTheMapStaysBounded) {
             << '\n';
   EXPECT_LE(frame_ate, 1.5 * keyframe_ate + 0.002);
   EXPECT_LE(frame_ate, 0.010);
+  // Under the frames' alignment the keyframes are the frames at their times: no better than
+  // aligned on their own (the least-squares optimum for them).
+  ASSERT_TRUE(s.keyframe_ate_in_frame_alignment);
+  EXPECT_EQ(s.keyframe_ate_in_frame_alignment->translation.count, s.keyframe_trajectory.size());
+  EXPECT_GE(s.keyframe_ate_in_frame_alignment->translation.rmse, keyframe_ate);
   EXPECT_LE(s.evaluation->ate.translation.max, 0.05) << "a frame more than 5 cm off";
   // About one keyframe in seven frames is made; culling keeps those alive to the place.
   EXPECT_GE(s.mapping.size(), 40u);
