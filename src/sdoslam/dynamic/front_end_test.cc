@@ -89,21 +89,11 @@ TEST_F(OnnxFrontEnd, AMissingOrMismatchedModelFailsBeforeTheFirstFrame) {
 }
 
 std::string WrittenFrontEndOptions(const FrontEndOptions& options) {
-  YAML::Emitter out;
-  out << YAML::BeginMap;
-  WriteFrontEndOptions(options, &out);
-  out << YAML::EndMap;
-  return out.c_str();
+  return testing::WrittenYaml(options, WriteFrontEndOptions);
 }
 
 std::string FrontEndErrorOf(const std::string& yaml) {
-  try {
-    ConfigMap root = ConfigMap::LoadString(yaml, "c.yaml");
-    ReadFrontEndOptions(root);
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
+  return testing::ReadErrorOf(yaml, ReadFrontEndOptions);
 }
 
 // Every setting changed, written and read back through the keys: each comes back as written.

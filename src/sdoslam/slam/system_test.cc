@@ -455,22 +455,10 @@ TEST(SlamOptionsTest, ConfigSectionsAreReadAndUnknownKeysRejected) {
 }
 
 std::string WrittenSlamOptions(const SlamOptions& options) {
-  YAML::Emitter out;
-  out << YAML::BeginMap;
-  WriteSlamOptions(options, &out);
-  out << YAML::EndMap;
-  return out.c_str();
+  return testing::WrittenYaml(options, WriteSlamOptions);
 }
 
-std::string ErrorOf(const std::string& yaml) {
-  try {
-    ConfigMap root = ConfigMap::LoadString(yaml, "c.yaml");
-    ReadSlamOptions(root);
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
+std::string ErrorOf(const std::string& yaml) { return testing::ReadErrorOf(yaml, ReadSlamOptions); }
 
 // Every setting changed, written and read back through the keys: each comes back as written.
 // (ReadFields, not ReadSlamOptions: the changed values are not meant to pass the checks.)

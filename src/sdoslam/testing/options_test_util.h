@@ -6,6 +6,7 @@
 
 #include <spdlog/sinks/ostream_sink.h>
 #include <spdlog/spdlog.h>
+#include <yaml-cpp/yaml.h>
 
 #include <filesystem>
 #include <map>
@@ -16,8 +17,32 @@
 #include <vector>
 
 #include "sdoslam/core/config.h"
+#include "sdoslam/core/error.h"
 
 namespace sdoslam::testing {
+
+// The YAML a section writer (WriteSlamOptions, WriteFrontEndOptions) emits into a top-level map.
+template <class Options, class Write>
+std::string WrittenYaml(const Options& options, Write&& write) {
+  YAML::Emitter out;
+  out << YAML::BeginMap;
+  write(options, &out);
+  out << YAML::EndMap;
+  return out.c_str();
+}
+
+// The message of the Error that a config reader (ReadSlamOptions, ReadFrontEndOptions) throws on
+// `yaml`, loaded as c.yaml; "" when it reads.
+template <class Read>
+std::string ReadErrorOf(const std::string& yaml, Read&& read) {
+  try {
+    ConfigMap root = ConfigMap::LoadString(yaml, "c.yaml");
+    read(root);
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
 
 // Every setting's value as text (doubles with all 17 digits), by its dotted path.
 template <class Options>
