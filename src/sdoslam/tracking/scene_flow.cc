@@ -113,10 +113,30 @@ std::vector<uint8_t> ClassifyBySceneFlow(const SceneFlowOptions& o,
   return dynamic;
 }
 
+LkPyramid BuildLkPyramid(const SceneFlowOptions& o, const cv::Mat& gray) {
+  CV_Assert(gray.type() == CV_8UC1);
+  LkPyramid pyramid;
+  // Derivatives with the border calcOpticalFlowPyrLK gives them itself (constant), and never
+  // the caller's buffer for level 0: the pyramid outlives the frame's images.
+  cv::buildOpticalFlowPyramid(gray, pyramid, cv::Size(o.track_window, o.track_window),
+                              o.track_levels, /*withDerivatives=*/true, cv::BORDER_REFLECT_101,
+                              cv::BORDER_CONSTANT, /*tryReuseInputImage=*/false);
+  return pyramid;
+}
+
 void TrackPointsBack(const SceneFlowOptions& o, const cv::Mat& current_gray,
                      const cv::Mat& previous_gray, const std::vector<cv::Point2f>& points,
                      std::vector<cv::Point2f>* previous_points, std::vector<uint8_t>* found,
                      const std::vector<cv::Point2f>* guesses) {
+  TrackPointsBack(o, BuildLkPyramid(o, current_gray), BuildLkPyramid(o, previous_gray), points,
+                  previous_points, found, guesses);
+}
+
+void TrackPointsBack(const SceneFlowOptions& o, const LkPyramid& current, const LkPyramid& previous,
+                     const std::vector<cv::Point2f>& points,
+                     std::vector<cv::Point2f>* previous_points, std::vector<uint8_t>* found,
+                     const std::vector<cv::Point2f>* guesses) {
+  CV_Assert(!current.empty() && !previous.empty() && current[0].size() == previous[0].size());
   CV_Assert(guesses == nullptr || guesses->size() == points.size());
   const std::vector<cv::Point2f>& start = guesses != nullptr ? *guesses : points;
   previous_points->assign(start.begin(), start.end());
@@ -124,12 +144,12 @@ void TrackPointsBack(const SceneFlowOptions& o, const cv::Mat& current_gray,
   if (points.empty()) return;
   std::vector<float> error;
   cv::calcOpticalFlowPyrLK(
-      current_gray, previous_gray, points, *previous_points, *found, error,
+      current, previous, points, *previous_points, *found, error,
       cv::Size(o.track_window, o.track_window), o.track_levels,
       cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.03),
       guesses != nullptr ? cv::OPTFLOW_USE_INITIAL_FLOW : 0);
-  const float max_x = static_cast<float>(previous_gray.cols - 1);
-  const float max_y = static_cast<float>(previous_gray.rows - 1);
+  const float max_x = static_cast<float>(previous[0].cols - 1);
+  const float max_y = static_cast<float>(previous[0].rows - 1);
   std::vector<size_t> kept;
   std::vector<cv::Point2f> starts;
   for (size_t i = 0; i < points.size(); ++i) {
@@ -151,7 +171,7 @@ void TrackPointsBack(const SceneFlowOptions& o, const cv::Mat& current_gray,
   for (size_t i : kept) returned.push_back(points[i]);  // initial guess: where they started
   std::vector<uint8_t> returned_found;
   cv::calcOpticalFlowPyrLK(
-      previous_gray, current_gray, starts, returned, returned_found, error,
+      previous, current, starts, returned, returned_found, error,
       cv::Size(o.track_window, o.track_window), o.track_levels,
       cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.03),
       cv::OPTFLOW_USE_INITIAL_FLOW);

@@ -165,6 +165,19 @@ void TrackPointsBack(const SceneFlowOptions& options, const cv::Mat& current_gra
                      std::vector<cv::Point2f>* previous_points, std::vector<uint8_t>* found,
                      const std::vector<cv::Point2f>* guesses = nullptr);
 
+// A grey image's Lucas–Kanade pyramid for the options' window and levels, with its derivatives
+// (cv::buildOpticalFlowPyramid). Built once per frame and kept, it spares each
+// calcOpticalFlowPyrLK call two pyramids and one image's derivatives: the check follows a
+// frame's points back three times. Its own copy of `gray`.
+using LkPyramid = std::vector<cv::Mat>;
+LkPyramid BuildLkPyramid(const SceneFlowOptions& options, const cv::Mat& gray);
+
+// TrackPointsBack on pyramids built by BuildLkPyramid with the same options: the same result.
+void TrackPointsBack(const SceneFlowOptions& options, const LkPyramid& current,
+                     const LkPyramid& previous, const std::vector<cv::Point2f>& points,
+                     std::vector<cv::Point2f>* previous_points, std::vector<uint8_t>* found,
+                     const std::vector<cv::Point2f>* guesses = nullptr);
+
 // The depths a pixel may have: the one at `pixel` (rounded) and the nearest and farthest valid
 // depths within `radius`, without repeats; empty when the window has no valid depth.
 std::vector<float> DepthCandidates(const cv::Mat& depth, cv::Point2f pixel, int radius);

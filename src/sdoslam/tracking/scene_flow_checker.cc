@@ -14,9 +14,21 @@ SceneFlowChecker::SceneFlowChecker(Map* map, const SceneFlowOptions& options)
 void SceneFlowChecker::RememberFrame(size_t index, bool tracked,
                                      const Eigen::Isometry3d& T_camera_world,
                                      const ConsistencyInput& input) {
-  // Cloned: the caller may reuse its buffers for the next frame.
-  history_.push_back({index, input.gray.clone(), input.depth.clone(), T_camera_world, tracked});
+  // Copied (the pyramid holds its own copy of the image): the caller may reuse its buffers for
+  // the next frame.
+  CurrentPyramid(index, input.gray);
+  history_.push_back(
+      {index, std::move(current_pyramid_), input.depth.clone(), T_camera_world, tracked});
+  current_pyramid_.clear();
   while (static_cast<int>(history_.size()) > options_.frame_gap) history_.pop_front();
+}
+
+const LkPyramid& SceneFlowChecker::CurrentPyramid(size_t index, const cv::Mat& gray) {
+  if (current_pyramid_.empty() || current_index_ != index) {
+    current_pyramid_ = BuildLkPyramid(options_, gray);
+    current_index_ = index;
+  }
+  return current_pyramid_;
 }
 
 void SceneFlowChecker::CorrectPoses(const Eigen::Isometry3d& change) {
@@ -94,9 +106,13 @@ std::vector<MapPoint*> SceneFlowChecker::CheckSceneFlow(Frame& frame, const Cons
   }
   std::vector<cv::Point2f> past_points;
   std::vector<uint8_t> found;
+  const LkPyramid* current_pyramid = nullptr;
   map_lock.WithoutMapLock([&] {
-    TrackPointsBack(o, input.gray, past->gray, tracked_points, &past_points, &found, &guesses);
+    current_pyramid = &CurrentPyramid(frame.index, input.gray);
+    TrackPointsBack(o, *current_pyramid, past->pyramid, tracked_points, &past_points, &found,
+                    &guesses);
   });
+  const LkPyramid& current = *current_pyramid;
 
   const std::vector<cv::Point2f> past_undistorted = camera.UndistortPoints(past_points);
   const Eigen::Isometry3d T_world_past = past->T_camera_world.inverse();
@@ -156,7 +172,7 @@ std::vector<MapPoint*> SceneFlowChecker::CheckSceneFlow(Frame& frame, const Cons
     std::vector<cv::Point2f> near_points;
     std::vector<uint8_t> near_found;
     map_lock.WithoutMapLock([&] {
-      TrackPointsBack(o, input.gray, near_past->gray, retry_points, &near_points, &near_found,
+      TrackPointsBack(o, current, near_past->pyramid, retry_points, &near_points, &near_found,
                       &retry_guesses);
     });
     const std::vector<cv::Point2f> near_undistorted = camera.UndistortPoints(near_points);
@@ -197,7 +213,7 @@ std::vector<MapPoint*> SceneFlowChecker::CheckSceneFlow(Frame& frame, const Cons
     std::vector<cv::Point2f> sample_past;
     std::vector<uint8_t> sample_found;
     map_lock.WithoutMapLock([&] {
-      TrackPointsBack(o, input.gray, past->gray, samples, &sample_past, &sample_found,
+      TrackPointsBack(o, current, past->pyramid, samples, &sample_past, &sample_found,
                       &sample_guesses);
     });
     const std::vector<cv::Point2f> sample_past_undistorted = camera.UndistortPoints(sample_past);

@@ -58,14 +58,20 @@ class SceneFlowChecker {
   // A remembered frame.
   struct PastFrame {
     size_t index;
-    cv::Mat gray, depth;
+    LkPyramid pyramid;  // of its grey image, for Lucas–Kanade
+    cv::Mat depth;
     Eigen::Isometry3d T_camera_world;
     bool tracked;
   };
 
+  // The current frame's pyramid, built once by CheckSceneFlow and handed to RememberFrame.
+  const LkPyramid& CurrentPyramid(size_t index, const cv::Mat& gray);
+
   Map* map_;
   SceneFlowOptions options_;
   std::deque<PastFrame> history_;  // oldest first
+  size_t current_index_ = 0;
+  LkPyramid current_pyramid_;  // frame current_index_'s, or empty
 };
 
 }  // namespace sdoslam

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
 #include <random>
 
 namespace sdoslam {
@@ -155,6 +156,45 @@ TEST(TrackPointsBack, StartsAtTheGuessesAndSkipsTheRoundTripOnlyNearThem) {
   o.skip_round_trip_px = 0;
   TrackPointsBack(o, current, previous, points, &back, &found, &guesses);
   EXPECT_EQ(found, (std::vector<uint8_t>{0, 0}));
+}
+
+// Pyramids built once (the checker keeps one per frame) must give exactly what OpenCV's own
+// per-call pyramids give, and must not share the caller's image, which the next frame reuses.
+TEST(TrackPointsBack, OnKeptPyramidsMatchesOpenCvOnImagesAndOwnsTheImage) {
+  cv::Mat previous = Texture(5);
+  cv::Mat current;
+  cv::warpAffine(previous, current, cv::Matx23d(0.998, 0.03, 4.3, -0.03, 0.998, 1.7),
+                 previous.size(), cv::INTER_LINEAR, cv::BORDER_REFLECT);
+  std::vector<cv::Point2f> points;
+  for (int y = 30; y < previous.rows - 30; y += 37)
+    for (int x = 30; x < previous.cols - 30; x += 41) points.emplace_back(x + 0.3f, y + 0.6f);
+  SceneFlowOptions o;
+  o.max_round_trip_px = 1e9;  // only the forward call decides `found`
+  o.max_track_error = 1e9;
+  std::vector<cv::Point2f> opencv_back;
+  std::vector<uint8_t> opencv_found;
+  std::vector<float> error;
+  cv::calcOpticalFlowPyrLK(
+      current, previous, points, opencv_back, opencv_found, error,
+      cv::Size(o.track_window, o.track_window), o.track_levels,
+      cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.03));
+  const LkPyramid current_pyramid = BuildLkPyramid(o, current);
+  const LkPyramid previous_pyramid = BuildLkPyramid(o, previous);
+  previous.setTo(0);  // the caller reuses its buffers
+  current.setTo(0);
+  std::vector<cv::Point2f> back;
+  std::vector<uint8_t> found;
+  TrackPointsBack(o, current_pyramid, previous_pyramid, points, &back, &found);
+  ASSERT_EQ(back.size(), points.size());
+  size_t tracked = 0;
+  for (size_t i = 0; i < points.size(); ++i) {
+    EXPECT_EQ(found[i], opencv_found[i] && back[i].x >= 0 && back[i].y >= 0) << i;
+    if (!opencv_found[i]) continue;
+    ++tracked;
+    EXPECT_EQ(back[i].x, opencv_back[i].x) << i;  // bit for bit
+    EXPECT_EQ(back[i].y, opencv_back[i].y) << i;
+  }
+  EXPECT_GE(tracked, points.size() * 9 / 10);
 }
 
 TEST(DepthCandidates, OffersBothSurfacesOfADepthEdge) {
