@@ -207,59 +207,45 @@ TEST(ConsistencyCheck, LandmarksOfAParkedCartLeaveTheMapOnceItMoves) {
 // Long runs: 600 frames of people walking through the room, the dynamic front end on, with
 // local mapping inline and in its thread. Frame poses are stored relative to keyframes that
 // culling later removes: they must stay as good as the keyframes themselves, and a camera that
-// never leaves the room must keep a map of bounded size.
-class LongRun : public ::testing::TestWithParam<bool> {
- protected:
-  static void SetUpTestSuite() {
-    dir_ = new testing::TempDir;
-    synth::SynthOptions options;
-    options.scenario = "walking_xyz";
-    options.frames = 600;
-    synth::WriteSequence(options, *dir_ / "seq", /*overwrite=*/true);
+// never leaves the room must keep a map of bounded size. One test renders the sequence once for
+// both modes (ctest runs each test in a process of its own: two tests would render it twice).
+TEST(LongRun, FramePosesStayWithTheirKeyFramesAndTheMapStaysBoundedInlineAndThreaded) {
+  testing::TempDir dir;
+  synth::SynthOptions options;
+  options.scenario = "walking_xyz";
+  options.frames = 600;
+  synth::WriteSequence(options, dir / "seq");
+  for (const bool sequential : {true, false}) {
+    SCOPED_TRACE(sequential ? "sequential" : "threaded");
+    RunOptions run =
+        SyntheticRun(dir / "seq", dir / (sequential ? "seq_out" : "thr_out"), RunMode::kSdo);
+    run.slam.sequential = sequential;
+    size_t most_keyframes = 0;
+    run.after_frame = [&](const TrackingResult& r, const System&) {
+      most_keyframes = std::max(most_keyframes, r.keyframes_alive);
+    };
+    const RunSummary s = RunOnDataset(run);
+    ASSERT_EQ(s.tracked, 600u);
+    ASSERT_TRUE(s.evaluation && s.keyframe_evaluation);
+    const double frame_ate = s.evaluation->ate.translation.rmse;
+    const double keyframe_ate = s.keyframe_evaluation->ate.translation.rmse;
+    std::cout << (sequential ? "sequential" : "threaded") << ": frame ATE " << frame_ate
+              << " keyframe ATE " << keyframe_ate << " max " << s.evaluation->ate.translation.max
+              << " keyframes made " << s.mapping.size() << " alive at most " << most_keyframes
+              << '\n';
+    EXPECT_LE(frame_ate, 1.5 * keyframe_ate + 0.002);
+    EXPECT_LE(frame_ate, 0.010);
+    // Under the frames' alignment the keyframes are the frames at their times: no better than
+    // aligned on their own (the least-squares optimum for them).
+    ASSERT_TRUE(s.keyframe_ate_in_frame_alignment);
+    EXPECT_EQ(s.keyframe_ate_in_frame_alignment->translation.count, s.keyframe_trajectory.size());
+    EXPECT_GE(s.keyframe_ate_in_frame_alignment->translation.rmse, keyframe_ate);
+    EXPECT_LE(s.evaluation->ate.translation.max, 0.05) << "a frame more than 5 cm off";
+    // About one keyframe in seven frames is made; culling keeps those alive to the place.
+    EXPECT_GE(s.mapping.size(), 40u);
+    EXPECT_LE(most_keyframes, 35u);
   }
-  static void TearDownTestSuite() {
-    delete dir_;
-    dir_ = nullptr;
-  }
-  static testing::TempDir* dir_;
-};
-testing::TempDir* LongRun::dir_ = nullptr;
-
-TEST_P(LongRun, FramePosesStayWithTheirKeyFramesAndTheMapStaysBounded) {
-  const bool sequential = GetParam();
-  RunOptions run =
-      SyntheticRun(*dir_ / "seq", *dir_ / (sequential ? "seq_out" : "thr_out"), RunMode::kSdo);
-  run.slam.sequential = sequential;
-  size_t most_keyframes = 0;
-  run.after_frame = [&](const TrackingResult& r, const System&) {
-    most_keyframes = std::max(most_keyframes, r.keyframes_alive);
-  };
-  const RunSummary s = RunOnDataset(run);
-  ASSERT_EQ(s.tracked, 600u);
-  ASSERT_TRUE(s.evaluation && s.keyframe_evaluation);
-  const double frame_ate = s.evaluation->ate.translation.rmse;
-  const double keyframe_ate = s.keyframe_evaluation->ate.translation.rmse;
-  std::cout << (sequential ? "sequential" : "threaded") << ": frame ATE " << frame_ate
-            << " keyframe ATE " << keyframe_ate << " max " << s.evaluation->ate.translation.max
-            << " keyframes made " << s.mapping.size() << " alive at most " << most_keyframes
-            << '\n';
-  EXPECT_LE(frame_ate, 1.5 * keyframe_ate + 0.002);
-  EXPECT_LE(frame_ate, 0.010);
-  // Under the frames' alignment the keyframes are the frames at their times: no better than
-  // aligned on their own (the least-squares optimum for them).
-  ASSERT_TRUE(s.keyframe_ate_in_frame_alignment);
-  EXPECT_EQ(s.keyframe_ate_in_frame_alignment->translation.count, s.keyframe_trajectory.size());
-  EXPECT_GE(s.keyframe_ate_in_frame_alignment->translation.rmse, keyframe_ate);
-  EXPECT_LE(s.evaluation->ate.translation.max, 0.05) << "a frame more than 5 cm off";
-  // About one keyframe in seven frames is made; culling keeps those alive to the place.
-  EXPECT_GE(s.mapping.size(), 40u);
-  EXPECT_LE(most_keyframes, 35u);
 }
-
-INSTANTIATE_TEST_SUITE_P(Mapping, LongRun, ::testing::Values(true, false),
-                         [](const ::testing::TestParamInfo<bool>& info) {
-                           return info.param ? "Sequential" : "Threaded";
-                         });
 
 // People walk through the long loop (synth long_loop_people: once around the room, then its
 // first metres again), and the front end runs (`sdo`). Without loop closing the two visits of
