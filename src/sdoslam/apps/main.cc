@@ -17,8 +17,10 @@
 #include "sdoslam/apps/vocab_command.h"
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/logging.h"
+#include "sdoslam/core/memory.h"
 
 int main(int argc, char** argv) {
+  sdoslam::KeepImageBuffersForReuse();  // before the first image: see memory.h
   CLI::App app{"sdoslam: visual SLAM for scenes that move (RGB-D, known and unknown objects)"};
   app.require_subcommand(1);
   std::string log_level = "info";

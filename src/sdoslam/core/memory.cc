@@ -2,6 +2,10 @@
 
 #include <unistd.h>
 
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
 #include <fstream>
 #include <string>
 
@@ -33,6 +37,17 @@ bool ResetPeakResidentBytes() {
   if (!(clear_refs << "5" << std::flush)) return false;
   // Kernels without the reset take the write and leave the peak alone: check that it moved.
   return PeakResidentBytes() <= ResidentBytes() + (1 << 20);
+}
+
+bool KeepImageBuffersForReuse() {
+#if defined(__GLIBC__)
+  // Blocks up to 16 MiB come from the heap, and up to 16 MiB of free heap top stays mapped.
+  // (Setting either also stops glibc's own threshold from moving with what is freed.)
+  constexpr int kBytes = 16 << 20;
+  return mallopt(M_MMAP_THRESHOLD, kBytes) == 1 && mallopt(M_TRIM_THRESHOLD, kBytes) == 1;
+#else
+  return false;
+#endif
 }
 
 }  // namespace sdoslam
