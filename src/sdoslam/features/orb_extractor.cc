@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 
 #include "sdoslam/core/error.h"
 
@@ -17,6 +18,13 @@ bool Stronger(const cv::KeyPoint& a, const cv::KeyPoint& b) {
   if (a.response != b.response) return a.response > b.response;
   if (a.pt.y != b.pt.y) return a.pt.y < b.pt.y;  // ties broken by position: deterministic
   return a.pt.x < b.pt.x;
+}
+
+// The `count` strongest of `keypoints`, strongest first.
+std::vector<cv::KeyPoint> Strongest(std::vector<cv::KeyPoint> keypoints, int count) {
+  std::sort(keypoints.begin(), keypoints.end(), Stronger);
+  if (static_cast<int>(keypoints.size()) > count) keypoints.resize(static_cast<size_t>(count));
+  return keypoints;
 }
 
 }  // namespace
@@ -55,8 +63,10 @@ std::vector<cv::KeyPoint> DistributeEvenly(const std::vector<cv::KeyPoint>& keyp
   };
   // The number of occupied cells grows as cells shrink: find the coarsest grid that has
   // enough of them (bisection on the cell size).
+  // One-pixel cells are the fallback when no coarser grid has enough; their grid is the image's
+  // size (a 640 x 480 level: 300,000 cells), so it is only built when it is needed.
   double lo = 1.0, hi = std::max(area.width, area.height);
-  std::vector<cv::KeyPoint> selected = best_per_cell(lo);
+  std::optional<std::vector<cv::KeyPoint>> selected;
   for (int iteration = 0; iteration < 20; ++iteration) {
     const double mid = 0.5 * (lo + hi);
     std::vector<cv::KeyPoint> candidate = best_per_cell(mid);
@@ -67,9 +77,8 @@ std::vector<cv::KeyPoint> DistributeEvenly(const std::vector<cv::KeyPoint>& keyp
       hi = mid;
     }
   }
-  std::sort(selected.begin(), selected.end(), Stronger);
-  if (static_cast<int>(selected.size()) > count) selected.resize(static_cast<size_t>(count));
-  return selected;
+  if (!selected) selected = best_per_cell(1.0);
+  return Strongest(std::move(*selected), count);
 }
 
 OrbExtractor::OrbExtractor(const OrbOptions& options) : options_(options) {
