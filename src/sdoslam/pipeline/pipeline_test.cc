@@ -44,10 +44,12 @@ struct ModeResults {
   MaskEvaluation masks;
 };
 
-std::filesystem::path WriteScenario(const std::string& scenario, const testing::TempDir& dir) {
+// Renders `frames` frames of a synthetic scenario into dir/seq and returns that folder.
+std::filesystem::path WriteScenario(const std::string& scenario, const testing::TempDir& dir,
+                                    int frames = kFrames) {
   synth::SynthOptions options;
   options.scenario = scenario;
-  options.frames = kFrames;
+  options.frames = frames;
   const auto sequence = dir / "seq";
   synth::WriteSequence(options, sequence, /*overwrite=*/true);
   return sequence;
@@ -211,10 +213,7 @@ TEST(ConsistencyCheck, LandmarksOfAParkedCartLeaveTheMapOnceItMoves) {
 // both modes (ctest runs each test in a process of its own: two tests would render it twice).
 TEST(LongRun, FramePosesStayWithTheirKeyFramesAndTheMapStaysBoundedInlineAndThreaded) {
   testing::TempDir dir;
-  synth::SynthOptions options;
-  options.scenario = "walking_xyz";
-  options.frames = 600;
-  synth::WriteSequence(options, dir / "seq");
+  WriteScenario("walking_xyz", dir, 600);
   for (const bool sequential : {true, false}) {
     SCOPED_TRACE(sequential ? "sequential" : "threaded");
     RunOptions run =
@@ -254,10 +253,7 @@ TEST(LongRun, FramePosesStayWithTheirKeyFramesAndTheMapStaysBoundedInlineAndThre
 // (measured: 57 -> 19 mm).
 TEST(PipelineLoopClosing, PeopleWalkingThroughTheLoopDoNotStopItClosing) {
   testing::TempDir dir;
-  synth::SynthOptions options;
-  options.scenario = "long_loop_people";
-  options.frames = synth::kLongLoopFrames;
-  synth::WriteSequence(options, dir / "seq");
+  WriteScenario("long_loop_people", dir, synth::kLongLoopFrames);
   RunOptions run = SyntheticRun(dir / "seq", dir / "with", RunMode::kSdo);
   // The default detector (HOG), as a user runs it. (With the renderer's person boxes instead the
   // front end leaves a different map: 31 mm with closing against 59 mm without, 0.52x.)
@@ -508,10 +504,7 @@ namespace {
 // the ground-truth masks, and no frame far off.
 TEST(PipelineMotionOnly, PeopleNoDetectorKnowsAreTakenOutByTheirMotion) {
   testing::TempDir dir;
-  synth::SynthOptions options;
-  options.scenario = "walking_xyz";
-  options.frames = 250;
-  synth::WriteSequence(options, dir / "seq");
+  WriteScenario("walking_xyz", dir, 250);
   RunOptions run = SyntheticRun(dir / "seq", dir / "oracle", RunMode::kOracle);
   run.front_end.detector = "none";
   run.slam.sequential = true;

@@ -178,10 +178,18 @@ TEST(TrackPointsBack, OnKeptPyramidsMatchesOpenCvOnImagesAndOwnsTheImage) {
       current, previous, points, opencv_back, opencv_found, error,
       cv::Size(o.track_window, o.track_window), o.track_levels,
       cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.03));
-  const LkPyramid current_pyramid = BuildLkPyramid(o, current);
-  const LkPyramid previous_pyramid = BuildLkPyramid(o, previous);
-  previous.setTo(0);  // the caller reuses its buffers
-  current.setTo(0);
+  // The images handed over are views into larger buffers with room around them: the kind of
+  // image OpenCV would take as a pyramid's level 0 as it is, if allowed to reuse it.
+  const auto in_larger_buffer = [](const cv::Mat& image) {
+    cv::Mat buffer;
+    cv::copyMakeBorder(image, buffer, 40, 40, 40, 40, cv::BORDER_REFLECT);
+    return buffer(cv::Rect(40, 40, image.cols, image.rows));
+  };
+  cv::Mat current_view = in_larger_buffer(current), previous_view = in_larger_buffer(previous);
+  const LkPyramid current_pyramid = BuildLkPyramid(o, current_view);
+  const LkPyramid previous_pyramid = BuildLkPyramid(o, previous_view);
+  previous_view.setTo(0);  // the caller reuses its buffers
+  current_view.setTo(0);
   std::vector<cv::Point2f> back;
   std::vector<uint8_t> found;
   TrackPointsBack(o, current_pyramid, previous_pyramid, points, &back, &found);
