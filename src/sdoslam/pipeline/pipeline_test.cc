@@ -5,7 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -643,6 +645,7 @@ TEST(PipelineRealBackground, TheBoxASwingingBoxAndAPersonAtOnceDoNotCaptureThePo
 // frames were tracked, and the ATE errors of those before and after the gap.
 struct GapOutcome {
   std::vector<bool> tracked;  // per frame
+  std::vector<double> error;  // per frame: the ATE error of a tracked one (metres), else NaN
   double ate = 0;
   double rms_before = 0, rms_after = 0;  // tracked frames before `gap_start`, from first_back on
   int first_back = -1;                   // first tracked frame after `gap_end`
@@ -661,6 +664,7 @@ GapOutcome RunThroughAGap(const std::filesystem::path& sequence, const CameraOpt
   const RgbdDataset dataset(sequence, camera);
   GapOutcome g;
   g.tracked.assign(dataset.size(), false);
+  g.error.assign(dataset.size(), std::numeric_limits<double>::quiet_NaN());
   std::map<double, size_t> frame_at;
   for (size_t k = 0; k < dataset.size(); ++k) frame_at[dataset.entries()[k].timestamp] = k;
   for (const StampedPose& p : s.trajectory) g.tracked[frame_at.at(p.timestamp)] = true;
@@ -673,6 +677,7 @@ GapOutcome RunThroughAGap(const std::filesystem::path& sequence, const CameraOpt
   int n_before = 0, n_after = 0;
   for (size_t m = 0; m < ate.errors.size(); ++m) {
     const size_t k = frame_at.at(s.trajectory[m].timestamp);
+    g.error[k] = ate.errors[m];
     const double e2 = ate.errors[m] * ate.errors[m];
     if (k < gap_start) {
       before += e2;
@@ -719,7 +724,8 @@ TEST(PipelineRealBackground, TenBlackFramesOnTheWayBackAreLostAndTrackingReturns
 
 // A person walks up to the camera over the real desk (synth person_fills_view, forward and
 // back), fills the whole view for most of a second, turns and walks away. No detector knows
-// the rendered person; `sdo` must still not follow it: every frame it fills is lost, tracking
+// the rendered person; `sdo` must still not follow it: every frame it fills is lost (a frame
+// tracked on a strip of desk in between must have the camera's pose), tracking
 // is back within 5 frames of the scene's return (the person covering less than 80 % of the
 // view), and the frames after are as accurate as those before. Measured: conventional follows
 // the person (141 mm); sdo took it for the background once it covered more than half the view
@@ -752,7 +758,16 @@ TEST(PipelineRealBackground, APersonWhoFillsTheViewIsNotFollowed) {
 
   const GapOutcome g = RunThroughAGap(dir / "seq", options.camera, RunMode::kSdo, dir / "sdo",
                                       first_filled, scene_back);
-  for (size_t k = first_filled; k <= last_filled; ++k) EXPECT_FALSE(g.tracked[k]) << k;
+  // Lost while the person fills the view. Between such frames the composited person leaves a
+  // strip of the desk in view on some (frame 61 of seed 1: 10 % of the image); tracking such a
+  // frame on the desk is right, following the person is not: its pose must be the camera's.
+  for (size_t k = first_filled; k <= last_filled; ++k) {
+    if (coverage[k] >= 0.99) {
+      EXPECT_FALSE(g.tracked[k]) << k;
+    } else if (g.tracked[k]) {
+      EXPECT_LE(g.error[k], 0.03) << "frame " << k << ", the person covers " << coverage[k];
+    }
+  }
   EXPECT_GE(g.first_back, 0);
   EXPECT_LE(g.first_back, static_cast<int>(scene_back) + 5)
       << "the scene is back at " << scene_back;
