@@ -51,15 +51,17 @@ struct BlockEnd {
 // frames (the whole run aligned once).
 void PrintBlocks(const RunSummary& s, const std::vector<BlockEnd>& blocks) {
   std::cout << fmt::format(
-      "{:>11} {:>4} {:>8} {:>8} {:>6} {:>6} {:>6} {:>6} {:>6} {:>5} {:>6} {:>7} {:>8} {:>5}\n",
-      "frames", "kf", "map_med", "map_p95", "insert", "triang", "fuse", "ba", "cull", "alive",
-      "points", "rss_MB", "ATE_mm", "lost");
+      "{:>11} {:>4} {:>8} {:>8} {:>8} {:>8} {:>6} {:>6} {:>6} {:>6} {:>6} {:>5} {:>6} {:>7} "
+      "{:>8} {:>5}\n",
+      "frames", "kf", "map_med", "map_p95", "cpu_med", "cpu_p95", "insert", "triang", "fuse", "ba",
+      "cull", "alive", "points", "rss_MB", "ATE_mm", "lost");
   size_t first = 0;
   for (const BlockEnd& b : blocks) {
-    std::vector<double> ms, insert, triangulate, fuse, ba, cull;
+    std::vector<double> ms, cpu, insert, triangulate, fuse, ba, cull;
     for (const MappingRecord& m : s.mapping) {
       if (m.frame_index < first || m.frame_index > b.last_frame) continue;
       ms.push_back(m.ms);
+      cpu.push_back(m.cpu_ms);
       insert.push_back(m.result.insert_ms);
       triangulate.push_back(m.result.triangulate_ms);
       fuse.push_back(m.result.fuse_ms);
@@ -76,11 +78,12 @@ void PrintBlocks(const RunSummary& s, const std::vector<BlockEnd>& blocks) {
       }
     }
     std::cout << fmt::format(
-        "{:>5}-{:<5} {:>4} {:>8.1f} {:>8.1f} {:>6.1f} {:>6.1f} {:>6.1f} {:>6.1f} {:>6.1f} {:>5} "
-        "{:>6} {:>7.1f} {:>8} {:>5}\n",
-        first, b.last_frame, ms.size(), Median(ms), Percentile(ms, 0.95), Median(insert),
-        Median(triangulate), Median(fuse), Median(ba), Median(cull), b.keyframes_alive,
-        b.map_points_alive, static_cast<double>(b.resident_bytes) / (1 << 20),
+        "{:>5}-{:<5} {:>4} {:>8.1f} {:>8.1f} {:>8.1f} {:>8.1f} {:>6.1f} {:>6.1f} {:>6.1f} {:>6.1f} "
+        "{:>6.1f} {:>5} {:>6} {:>7.1f} {:>8} {:>5}\n",
+        first, b.last_frame, ms.size(), Median(ms), Percentile(ms, 0.95), Median(cpu),
+        Percentile(cpu, 0.95), Median(insert), Median(triangulate), Median(fuse), Median(ba),
+        Median(cull), b.keyframes_alive, b.map_points_alive,
+        static_cast<double>(b.resident_bytes) / (1 << 20),
         errors.empty() ? "-" : fmt::format("{:.1f}", 1000 * ComputeErrorStats(errors).rmse),
         b.lost);
     first = b.last_frame + 1;

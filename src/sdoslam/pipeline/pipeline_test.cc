@@ -245,6 +245,12 @@ TEST(LongRun, FramePosesStayWithTheirKeyFramesAndTheMapStaysBoundedInlineAndThre
     // About one keyframe in seven frames is made; culling keeps those alive to the place.
     EXPECT_GE(s.mapping.size(), 40u);
     EXPECT_LE(most_keyframes, 35u);
+    // Each keyframe's mapping CPU time is measured on the thread that mapped it: some work, and
+    // no more than its wall time.
+    for (const MappingRecord& m : s.mapping) {
+      EXPECT_GT(m.cpu_ms, 0.0) << m.frame_index;
+      EXPECT_LE(m.cpu_ms, m.ms + 1.0) << m.frame_index;
+    }
   }
 }
 

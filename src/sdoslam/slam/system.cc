@@ -160,12 +160,14 @@ void System::MappingLoop() {
       mapping_busy_ = true;
     }
     const auto start = std::chrono::steady_clock::now();
+    const double cpu_start = ThreadCpuMs();
     const MappingResult result = mapper_->Process(keyframe, &map_mutex_);
-    const double ms = MsSince(start);
+    const double ms = MsSince(start), cpu_ms = ThreadCpuMs() - cpu_start;
     {
       std::lock_guard<std::mutex> lock(queue_mutex_);
       mapping_busy_ = false;
-      mapping_records_.push_back({keyframe->frame.index, ms, result});
+      mapping_records_.push_back(
+          {.frame_index = keyframe->frame.index, .ms = ms, .cpu_ms = cpu_ms, .result = result});
       loop_queue_.push_back(keyframe);
     }
     loop_queue_changed_.notify_one();
@@ -260,10 +262,14 @@ TrackingResult System::Track(PreparedFrame&& prepared, FrameTiming* timing) {
   if (keyframe != nullptr) {
     if (options_.sequential) {
       start = std::chrono::steady_clock::now();
+      const double cpu_start = ThreadCpuMs();
       const MappingResult mapped = mapper_->Process(keyframe);
       CloseLoops(keyframe);
       t.mapping_ms = MsSince(start);
-      mapping_records_.push_back({keyframe->frame.index, t.mapping_ms, mapped});
+      mapping_records_.push_back({.frame_index = keyframe->frame.index,
+                                  .ms = t.mapping_ms,
+                                  .cpu_ms = ThreadCpuMs() - cpu_start,
+                                  .result = mapped});
     } else {
       {
         std::lock_guard<std::mutex> lock(queue_mutex_);

@@ -86,6 +86,9 @@ struct FrameTiming {
 struct MappingRecord {
   size_t frame_index = 0;  // the frame the keyframe was made from
   double ms = 0;
+  // The mapping thread's CPU time for it: in a threaded run `ms` also holds the time tracking
+  // had the core.
+  double cpu_ms = 0;
   MappingResult result;
 };
 
