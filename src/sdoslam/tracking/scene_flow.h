@@ -59,7 +59,8 @@ struct SceneFlowOptions {
   // is rarely needed; over the 12 hard real-background plays and the static ones accuracy was
   // the same or better (mixed seeds 1-3 6.8 -> 6.4 mm), and tracking 3 ms a frame cheaper.
   // A 15 px window, not 21: the search starts at the static prediction, so a small window
-  // suffices; tracking is 4-5 ms a frame cheaper, and every seed of the four hard
+  // suffices; features + tracking are 0.5-2.6 ms a frame cheaper (bench --runs 5: fr2_desk_50
+  // 34.4 -> 33.9 ms, mixed play seed 1 30.1 -> 27.5), and every seed of the four hard
   // real-background plays stayed within its bar (medians: carried box 5.8 -> 5.6 mm, swinging
   // boxes 5.6 -> 5.0, people 4.5 -> 4.8, mixed 6.5 -> 6.6).
   int track_window = 15;
