@@ -21,4 +21,12 @@ inline double ThreadCpuMs() {
   return 1e3 * static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_nsec);
 }
 
+// Wall-clock and calling-thread CPU time since construction, for a stage timed both ways.
+struct StageClock {
+  std::chrono::steady_clock::time_point wall_start = std::chrono::steady_clock::now();
+  double cpu_start = ThreadCpuMs();
+  double WallMs() const { return MsSince(wall_start); }
+  double CpuMs() const { return ThreadCpuMs() - cpu_start; }
+};
+
 }  // namespace sdoslam

@@ -159,10 +159,9 @@ void System::MappingLoop() {
       queue_.pop_front();
       mapping_busy_ = true;
     }
-    const auto start = std::chrono::steady_clock::now();
-    const double cpu_start = ThreadCpuMs();
+    const StageClock clock;
     const MappingResult result = mapper_->Process(keyframe, &map_mutex_);
-    const double ms = MsSince(start), cpu_ms = ThreadCpuMs() - cpu_start;
+    const double ms = clock.WallMs(), cpu_ms = clock.CpuMs();
     {
       std::lock_guard<std::mutex> lock(queue_mutex_);
       mapping_busy_ = false;
@@ -261,14 +260,13 @@ TrackingResult System::Track(PreparedFrame&& prepared, FrameTiming* timing) {
   t.tracking_ms = MsSince(start);
   if (keyframe != nullptr) {
     if (options_.sequential) {
-      start = std::chrono::steady_clock::now();
-      const double cpu_start = ThreadCpuMs();
+      const StageClock clock;
       const MappingResult mapped = mapper_->Process(keyframe);
       CloseLoops(keyframe);
-      t.mapping_ms = MsSince(start);
+      t.mapping_ms = clock.WallMs();
       mapping_records_.push_back({.frame_index = keyframe->frame.index,
                                   .ms = t.mapping_ms,
-                                  .cpu_ms = ThreadCpuMs() - cpu_start,
+                                  .cpu_ms = clock.CpuMs(),
                                   .result = mapped});
     } else {
       {
