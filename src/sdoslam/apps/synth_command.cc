@@ -24,6 +24,7 @@ struct SynthArgs {
   unsigned seed = 1;
   bool no_noise = false;
   int motion_blur = 0;
+  int supersample = 1;
   bool exposure_changes = false;
   bool overwrite = false;
   bool list = false;
@@ -92,6 +93,7 @@ void RunSynth(const SynthArgs& args) {
   if (!args.background.empty()) {
     if (!args.motion.empty()) throw Error("--motion does not apply with --background");
     if (args.exposure_changes) throw Error("--exposure-changes does not apply with --background");
+    if (args.supersample != 1) throw Error("--supersample does not apply with --background");
     if (args.layout != "tum" || args.depth_factor != 5000.0)
       throw Error("--layout and --depth-factor do not apply with --background");
     RunBackgroundSynth(args);
@@ -107,6 +109,7 @@ void RunSynth(const SynthArgs& args) {
   options.seed = args.seed;
   options.sensor.enabled = !args.no_noise;
   options.sensor.motion_blur_samples = args.motion_blur;
+  options.sensor.supersampling = args.supersample;
   options.sensor.exposure_changes = args.exposure_changes;
   options.depth_factor = args.depth_factor;
   synth::SequenceSummary s;
@@ -158,6 +161,11 @@ void AddSynthCommand(CLI::App& app) {
                 "perfect sensor: no image or depth noise, no missing depth");
   cmd->add_option("--motion-blur", args->motion_blur, "renderings averaged per frame (0: no blur)")
       ->check(CLI::Range(0, 64));
+  cmd->add_option("--supersample", args->supersample,
+                  "rays per pixel side for the colour image, averaged over the pixel as a camera "
+                  "does (1: one ray through the centre, whose sharp texture edges alias)")
+      ->check(CLI::Range(1, 8))
+      ->capture_default_str();
   cmd->add_flag("--exposure-changes", args->exposure_changes, "let the exposure drift");
   cmd->add_option("--background", args->background,
                   fmt::format("render the scenario's moving objects into this real static "

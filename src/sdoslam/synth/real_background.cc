@@ -199,6 +199,10 @@ void BackgroundSynthOptions::Check() const {
   if (sensor.motion_blur_samples > 1) {
     throw Error("motion blur is not available over a real background (its frames are as recorded)");
   }
+  if (sensor.supersampling > 1) {
+    // The composited objects' edges would average with the renderer's empty black background.
+    throw Error("supersampling is not available over a real background");
+  }
   sensor.Check();
   camera.Check();
 }

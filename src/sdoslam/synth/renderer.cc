@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <opencv2/imgproc.hpp>
 
 namespace sdoslam::synth {
 namespace {
@@ -139,6 +140,27 @@ RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_wor
   tbb::parallel_for(0, height, render_row);
 #endif
   return view;
+}
+
+cv::Mat RenderColour(const Scene& scene, double t, const Eigen::Isometry3d& T_world_camera,
+                     const Camera& camera, int samples_per_side) {
+  const int n = samples_per_side;
+  if (n <= 1) return Render(scene, t, T_world_camera, camera).colour;
+  // The same camera at n times the resolution: its pixel (n·u + k, n·v + l) looks through
+  // (u + (k − (n − 1)/2)/n, v + (l − (n − 1)/2)/n) of this one, so an n × n block of it covers
+  // this camera's pixel (u, v) evenly. The distortion acts on normalised coordinates and stays.
+  CameraOptions fine = camera.options();
+  fine.width *= n;
+  fine.height *= n;
+  fine.fx *= n;
+  fine.fy *= n;
+  fine.cx = n * fine.cx + 0.5 * (n - 1);
+  fine.cy = n * fine.cy + 0.5 * (n - 1);
+  const cv::Mat sharp = Render(scene, t, T_world_camera, Camera(fine)).colour;
+  cv::Mat colour;
+  // An integer factor: INTER_AREA is the plain mean of each n × n block.
+  cv::resize(sharp, colour, cv::Size(camera.width(), camera.height()), 0, 0, cv::INTER_AREA);
+  return colour;
 }
 
 }  // namespace sdoslam::synth

@@ -18,6 +18,7 @@ void SensorOptions::Check() const {
   require(exposure_amplitude >= 0 && exposure_amplitude < 1, "exposure_amplitude");
   require(motion_blur_samples >= 0 && motion_blur_samples <= 64, "motion_blur_samples");
   require(exposure_time >= 0 && exposure_time < 1, "exposure_time");
+  require(supersampling >= 1 && supersampling <= 8, "supersampling");
 }
 
 SensorFrame Sense(const RenderedView& view, const CameraOptions& camera,

@@ -54,10 +54,12 @@ SequenceSummary WriteSequence(const SynthOptions& options, const std::filesystem
       for (int s = 0; s < sensor.motion_blur_samples; ++s) {
         const double ts =
             t + sensor.exposure_time * (s / double(sensor.motion_blur_samples - 1) - 0.5);
-        sum +=
-            Render(scenario.scene, ts, CameraPoseAt(scenario.motion, ts, duration), camera).colour;
+        sum += RenderColour(scenario.scene, ts, CameraPoseAt(scenario.motion, ts, duration), camera,
+                            sensor.supersampling);
       }
       view.colour = sum / sensor.motion_blur_samples;
+    } else if (sensor.supersampling > 1) {
+      view.colour = RenderColour(scenario.scene, t, T_world_camera, camera, sensor.supersampling);
     }
     double gain = 1.0;
     if (sensor.enabled && sensor.exposure_changes) {
@@ -80,6 +82,7 @@ SequenceSummary WriteSequence(const SynthOptions& options, const std::filesystem
        << "sensor_noise" << YAML::Value << options.sensor.enabled << YAML::Key << "depth_distortion"
        << YAML::Value << fmt::format("{}", sensor.depth_distortion) << YAML::Key
        << "motion_blur_samples" << YAML::Value << options.sensor.motion_blur_samples << YAML::Key
+       << "supersampling" << YAML::Value << options.sensor.supersampling << YAML::Key
        << "exposure_changes" << YAML::Value << options.sensor.exposure_changes << YAML::EndMap;
   SequenceSummary summary = writer.Finish(camera_options, scenario.scene, info);
   summary.render_seconds = render_seconds;

@@ -56,6 +56,48 @@ TEST(Intersect, BoxAndEllipsoidHitsLieOnTheSurfaceWithOutwardNormals) {
       Intersect(box, Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 0, 1), 4.0, &hit));  // too far
 }
 
+TEST(Renderer, SupersampledColourAveragesThePixelArea) {
+  // A plain grey wall 5 m ahead whose left edge projects at u = 40.3: pixel 40 spans
+  // [39.5, 40.5], so 20 % of it shows the wall (black beyond). One ray through its centre misses
+  // the wall; 4 × 4 rays put one column of four on it (u = 40.375): a quarter of the wall's
+  // colour. A wrong sub-pixel offset puts none or two columns there.
+  CameraOptions o;
+  o.width = 80;
+  o.height = 60;
+  o.fx = o.fy = 100;
+  o.cx = 39.5;
+  o.cy = 29.5;
+  const Camera camera(o);
+  constexpr double kDepth = 5.0, kEdgeU = 40.3;
+  Primitive wall;
+  wall.half_size = Eigen::Vector3d(10, 10, 0.1);
+  // Value cells of 37 cm and less would vary the wall's colour: a cell spans several metres
+  // with this scale, and the wall falls in one or two.
+  wall.texture_scale = 100;
+  const double edge_x = (kEdgeU - o.cx) * kDepth / o.fx;
+  wall.T_world_primitive.translation() = Eigen::Vector3d(edge_x + 10, 0, kDepth + 0.1);
+  Scene scene;
+  scene.static_parts.push_back(wall);
+  const Eigen::Isometry3d at_origin = Eigen::Isometry3d::Identity();
+
+  const RenderedView one_ray = Render(scene, 0.0, at_origin, camera);
+  const cv::Mat area = RenderColour(scene, 0.0, at_origin, camera, 4);
+  ASSERT_EQ(area.size(), one_ray.colour.size());
+  ASSERT_EQ(area.type(), CV_32FC3);
+  const int row = 30;
+  const cv::Vec3f inside = one_ray.colour.at<cv::Vec3f>(row, 45);
+  ASSERT_GT(inside[1], 0.05f);
+  EXPECT_EQ(one_ray.colour.at<cv::Vec3f>(row, 40), cv::Vec3f(0, 0, 0));
+  EXPECT_GT(one_ray.colour.at<cv::Vec3f>(row, 41)[1], 0.05f);
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_NEAR(area.at<cv::Vec3f>(row, 40)[c], 0.25f * inside[c], 0.02f) << "channel " << c;
+    EXPECT_NEAR(area.at<cv::Vec3f>(row, 45)[c], inside[c], 1e-3f);  // wholly on the wall
+    EXPECT_EQ(area.at<cv::Vec3f>(row, 35)[c], 0.0f);                // wholly off it
+  }
+  EXPECT_EQ(RenderColour(scene, 0.0, at_origin, camera, 1).at<cv::Vec3f>(row, 40),
+            cv::Vec3f(0, 0, 0));
+}
+
 TEST(Renderer, StaticPixelsReprojectOntoTheSameSurfaceInTheNextFrame) {
   // Photometric and depth consistency of the static world between consecutive frames, using
   // only the ground-truth depth, poses and intrinsics.
