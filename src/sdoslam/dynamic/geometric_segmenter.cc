@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "sdoslam/core/error.h"
+#include "sdoslam/dynamic/lab.h"
 
 namespace sdoslam {
 namespace {
@@ -69,8 +70,7 @@ Segmentation GeometricSegmenter::Segment(const FrontEndFrame& frame) {
   cv::Mat& z = z_;
   cv::resize(frame.depth, z, work_size_, 0, 0, cv::INTER_NEAREST);
   cv::resize(frame.bgr, bgr_, work_size_, 0, 0, cv::INTER_AREA);
-  bgr_.convertTo(bgr_float_, CV_32F, 1.0 / 255.0);
-  cv::cvtColor(bgr_float_, colour_, cv::COLOR_BGR2Lab);
+  BgrToLab(bgr_, &colour_);
 
   cv::rgbd::depthTo3d(z, cv::Mat(K_work_), points_);
   (*normals_)(points_, normals_out_);

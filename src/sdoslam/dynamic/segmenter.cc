@@ -10,6 +10,7 @@
 #include <opencv2/ximgproc/segmentation.hpp>
 
 #include "sdoslam/core/error.h"
+#include "sdoslam/dynamic/lab.h"
 #include "sdoslam/io/image_header.h"
 
 namespace sdoslam {
@@ -53,10 +54,9 @@ Segmentation RgbdSegmenter::Segment(const FrontEndFrame& frame) {
   const double scale = static_cast<double>(options_.work_width) / frame.bgr.cols;
   const cv::Size work(options_.work_width,
                       std::max(1, static_cast<int>(std::lround(frame.bgr.rows * scale))));
-  cv::Mat small;
-  cv::resize(frame.bgr, small, work, 0, 0, cv::INTER_AREA);
-  small.convertTo(small, CV_32F, 1.0 / 255.0);
-  cv::cvtColor(small, small, cv::COLOR_BGR2Lab);
+  cv::Mat small_bgr, small;
+  cv::resize(frame.bgr, small_bgr, work, 0, 0, cv::INTER_AREA);
+  BgrToLab(small_bgr, &small);
   std::vector<cv::Mat> channels;
   cv::split(small, channels);
   for (cv::Mat& c : channels) c *= options_.colour_weight;
