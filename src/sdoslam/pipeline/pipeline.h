@@ -46,6 +46,10 @@ struct PipelineOptions {
   // rgb path (the detections and masks files are checked against them when the pipeline is made).
   std::filesystem::path dataset_folder;
   std::vector<std::filesystem::path> rgb_paths;
+  // kSdo: extract the ORB features in a task beside the front end instead of after it (they need
+  // only the grey image; the front end's labels join them afterwards). Same result either way;
+  // threaded runs set it so that a frame's preparation can use both cores.
+  bool extract_beside_front_end = false;
 };
 
 // A frame after the stages that need no map: the dynamic front end's verdict and the ORB

@@ -843,7 +843,8 @@ std::filesystem::path WriteShortWalk(const testing::TempDir& dir, int frames) {
 }
 
 // Preparing ahead moves the front end and feature extraction of frame k + 1 into a thread that
-// runs while frame k is tracked. With mapping inline, that must change nothing: a stage that
+// runs while frame k is tracked, and there extracts the features in a task beside the front end
+// (extract_beside_front_end). With mapping inline, that must change nothing: a stage that
 // delivered frames out of order, dropped one, or let the front end see them in another order
 // would change the trajectory and the per-frame labels.
 TEST(PipelineStages, PreparingAheadGivesTheInlineRunsTrajectoryBitForBit) {

@@ -190,22 +190,19 @@ PreparedFrame System::Prepare(size_t index, double timestamp, const cv::Mat& bgr
                               const cv::Mat& depth, const cv::Mat& dynamic_labels,
                               const cv::Mat& segments,
                               const std::vector<uint8_t>& locked_segments) const {
+  PreparedFrame prepared = ExtractFeatures(index, timestamp, bgr, depth);
+  AddDynamicInputs(&prepared, dynamic_labels, segments, locked_segments);
+  return prepared;
+}
+
+PreparedFrame System::ExtractFeatures(size_t index, double timestamp, const cv::Mat& bgr,
+                                      const cv::Mat& depth) const {
   const CameraOptions& c = geometry_->camera.options();
   if (bgr.cols != c.width || bgr.rows != c.height || depth.size() != bgr.size()) {
     throw Error("frame " + std::to_string(index) + ": images are not " + std::to_string(c.width) +
                 "x" + std::to_string(c.height));
   }
   const auto start = std::chrono::steady_clock::now();
-  if (!dynamic_labels.empty() &&
-      (dynamic_labels.size() != bgr.size() || dynamic_labels.type() != CV_8UC1)) {
-    throw Error("frame " + std::to_string(index) +
-                ": the dynamic label image is not 8-bit single-channel of the frame's size");
-  }
-  if (!segments.empty() &&
-      (segments.type() != CV_32SC1 || segments.cols > bgr.cols || segments.rows > bgr.rows)) {
-    throw Error("frame " + std::to_string(index) +
-                ": the segment image is not 32-bit single-channel of at most the frame's size");
-  }
   // The grey image is made once: feature extraction and the consistency check share it.
   cv::Mat gray;
   if (bgr.channels() == 3) {
@@ -213,17 +210,37 @@ PreparedFrame System::Prepare(size_t index, double timestamp, const cv::Mat& bgr
   } else {
     gray = bgr;
   }
-  PreparedFrame prepared{Frame(index, timestamp, gray, depth, geometry_, extractor_), {}, 0};
-  if (!dynamic_labels.empty()) prepared.frame.SetLabels(dynamic_labels);
-  if (!segments.empty()) {
-    prepared.consistency.emplace();
-    prepared.consistency->gray = gray;
-    prepared.consistency->depth = depth;
-    prepared.consistency->segments = segments;
-    prepared.consistency->locked_segments = locked_segments;
-  }
+  PreparedFrame prepared{
+      Frame(index, timestamp, gray, depth, geometry_, extractor_), {}, 0, gray, depth};
   prepared.features_ms = MsSince(start);
   return prepared;
+}
+
+void System::AddDynamicInputs(PreparedFrame* prepared, const cv::Mat& dynamic_labels,
+                              const cv::Mat& segments,
+                              const std::vector<uint8_t>& locked_segments) const {
+  const size_t index = prepared->frame.index;
+  const cv::Size size = prepared->gray.size();
+  const auto start = std::chrono::steady_clock::now();
+  if (!dynamic_labels.empty() &&
+      (dynamic_labels.size() != size || dynamic_labels.type() != CV_8UC1)) {
+    throw Error("frame " + std::to_string(index) +
+                ": the dynamic label image is not 8-bit single-channel of the frame's size");
+  }
+  if (!segments.empty() &&
+      (segments.type() != CV_32SC1 || segments.cols > size.width || segments.rows > size.height)) {
+    throw Error("frame " + std::to_string(index) +
+                ": the segment image is not 32-bit single-channel of at most the frame's size");
+  }
+  if (!dynamic_labels.empty()) prepared->frame.SetLabels(dynamic_labels);
+  if (!segments.empty()) {
+    prepared->consistency.emplace();
+    prepared->consistency->gray = prepared->gray;
+    prepared->consistency->depth = prepared->depth;
+    prepared->consistency->segments = segments;
+    prepared->consistency->locked_segments = locked_segments;
+  }
+  prepared->features_ms += MsSince(start);
 }
 
 TrackingResult System::Track(PreparedFrame&& prepared, FrameTiming* timing) {

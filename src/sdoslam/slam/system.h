@@ -98,6 +98,9 @@ struct PreparedFrame {
   Frame frame;
   std::optional<ConsistencyInput> consistency;
   double features_ms = 0;
+  // The frame's grey image (made once: extraction and the check share it) and depth image, for
+  // the check's inputs.
+  cv::Mat gray, depth;
 };
 
 // The library's face: feed RGB-D frames in order, read trajectories. Local mapping runs inline
@@ -131,6 +134,14 @@ class System {
                         const cv::Mat& dynamic_labels = cv::Mat(),
                         const cv::Mat& segments = cv::Mat(),
                         const std::vector<uint8_t>& locked_segments = {}) const;
+  // Prepare in two steps, so that feature extraction can run beside a dynamic front end that
+  // makes the labels and segments: Prepare(...) is exactly ExtractFeatures(index, timestamp,
+  // bgr, depth) followed by AddDynamicInputs(&prepared, dynamic_labels, segments,
+  // locked_segments). Each validates its own inputs.
+  PreparedFrame ExtractFeatures(size_t index, double timestamp, const cv::Mat& bgr,
+                                const cv::Mat& depth) const;
+  void AddDynamicInputs(PreparedFrame* prepared, const cv::Mat& dynamic_labels,
+                        const cv::Mat& segments, const std::vector<uint8_t>& locked_segments) const;
   TrackingResult Track(PreparedFrame&& prepared, FrameTiming* timing = nullptr);
 
   // Every tracked frame (lost ones left out), with its pose relative to its reference keyframe
