@@ -192,8 +192,8 @@ StagedFrame Pipeline::Prepare(RgbdInput input, const cv::Mat& dynamic_mask) {
   auto extract = [&] {
     features.emplace(slam_->ExtractFeatures(input.index, input.timestamp, input.bgr, input.depth));
   };
-  // A thread of its own (30 us to start against 10 ms of work; ThreadSanitizer sees its
-  // synchronisation, which it would not in a TBB task). The future's destructor waits for it on
+  // A thread of its own (tens of microseconds to start against 10 ms of work; ThreadSanitizer sees
+  // its synchronisation, which it would not in a TBB task). The future's destructor waits for it on
   // every way out, exceptions included, before `features` goes.
   std::future<void> extraction;
   const bool beside = front_end_ && options_.extract_beside_front_end;
