@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "sdoslam/core/error.h"
+#include "sdoslam/io/png_reader.h"
 
 namespace sdoslam {
 
@@ -42,15 +43,29 @@ MaskEvaluator::MaskEvaluator(const std::filesystem::path& sequence) : sequence_(
   const auto objects = sequence / "objects.json";
   std::ifstream in(objects);
   if (!in) throw Error(objects.string() + ": cannot open");
+  std::map<int, std::string> class_of_instance;
   try {
     const nlohmann::json j = nlohmann::json::parse(in);
     for (const auto& o : j.at("objects")) {
       const bool known = o.value("known", false) && o.at("class").is_string();
-      class_of_instance_[o.at("id").get<int>()] =
+      class_of_instance[o.at("id").get<int>()] =
           known ? o.at("class").get<std::string>() : "unknown";
     }
   } catch (const nlohmann::json::exception& e) {
     throw Error(objects.string() + ": " + e.what());
+  }
+  const auto slot_of = [this](const std::string& name) {
+    const auto it = std::find(class_names_.begin(), class_names_.end(), name);
+    if (it != class_names_.end()) return static_cast<int>(it - class_names_.begin());
+    class_names_.push_back(name);
+    return static_cast<int>(class_names_.size()) - 1;
+  };
+  unknown_slot_ = slot_of("unknown");
+  for (const auto& [id, name] : class_of_instance) {
+    if (id < 0 || id > 65535) continue;  // an 8- or 16-bit instance image holds no such id
+    if (static_cast<size_t>(id) >= slot_of_instance_.size())
+      slot_of_instance_.resize(static_cast<size_t>(id) + 1, unknown_slot_);
+    slot_of_instance_[static_cast<size_t>(id)] = slot_of(name);
   }
 }
 
@@ -60,8 +75,8 @@ void MaskEvaluator::AddFrame(const std::filesystem::path& rgb_path, const cv::Ma
   const std::string name = rgb_path.filename().string();
   const auto dynamic_path = sequence_ / "dynamic" / name,
              instance_path = sequence_ / "instance" / name;
-  const cv::Mat truth = cv::imread(dynamic_path.string(), cv::IMREAD_UNCHANGED);
-  const cv::Mat instance = cv::imread(instance_path.string(), cv::IMREAD_UNCHANGED);
+  const cv::Mat truth = ReadImage(dynamic_path, cv::IMREAD_UNCHANGED);
+  const cv::Mat instance = ReadImage(instance_path, cv::IMREAD_UNCHANGED);
   if (truth.empty()) throw Error(dynamic_path.string() + ": cannot read the ground-truth mask");
   if (instance.empty()) throw Error(instance_path.string() + ": cannot read the instance mask");
   if (truth.size() != predicted.size() || instance.size() != predicted.size())
@@ -84,23 +99,26 @@ void MaskEvaluator::AddFrame(const std::filesystem::path& rgb_path, const cv::Ma
   result_.pixels += frame;
 
   // Per class: moving pixels of the class, and mistakes inside its objects' grown boxes.
-  std::map<std::string, cv::Mat> class_truth;
+  std::vector<cv::Mat> class_truth(class_names_.size());
   for (int y = 0; y < truth.rows; ++y) {
     const uint8_t* t = truth.ptr<uint8_t>(y);
     const int* id = instance32.ptr<int>(y);
     for (int x = 0; x < truth.cols; ++x) {
       if (!t[x]) continue;
-      const auto it = class_of_instance_.find(id[x]);
-      const std::string cls = it == class_of_instance_.end() ? "unknown" : it->second;
-      cv::Mat& m = class_truth[cls];
+      const size_t slot = id[x] >= 0 && static_cast<size_t>(id[x]) < slot_of_instance_.size()
+                              ? static_cast<size_t>(slot_of_instance_[static_cast<size_t>(id[x])])
+                              : static_cast<size_t>(unknown_slot_);
+      cv::Mat& m = class_truth[slot];
       if (m.empty()) m = cv::Mat(truth.size(), CV_8U, cv::Scalar(0));
-      m.at<uint8_t>(y, x) = 255;
+      m.ptr<uint8_t>(y)[x] = 255;
     }
   }
-  for (const auto& [cls, mask] : class_truth) {
+  for (size_t slot = 0; slot < class_truth.size(); ++slot) {
+    const cv::Mat& mask = class_truth[slot];
+    if (mask.empty()) continue;
     cv::Mat region(truth.size(), CV_8U, cv::Scalar(0));
     std::vector<std::vector<cv::Point>> contours;
-    cv::findContours(mask.clone(), contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
+    cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
     for (const auto& c : contours) {
       cv::Rect r = cv::boundingRect(c);
       const int gx = r.width / 10, gy = r.height / 10;
@@ -122,7 +140,7 @@ void MaskEvaluator::AddFrame(const std::filesystem::path& rgb_path, const cv::Ma
         }
       }
     }
-    result_.per_class[cls] += c;
+    result_.per_class[class_names_[slot]] += c;
   }
 
   if (features.size() != feature_labels.size())

@@ -43,7 +43,11 @@ class MaskEvaluator {
 
  private:
   std::filesystem::path sequence_;
-  std::map<int, std::string> class_of_instance_;
+  // Class slot of each instance id (ids missing here and ids past the end: `unknown_slot_`),
+  // so the per-pixel loop indexes arrays instead of looking names up.
+  std::vector<int> slot_of_instance_;
+  std::vector<std::string> class_names_;
+  int unknown_slot_ = 0;
   MaskEvaluation result_;
 };
 
