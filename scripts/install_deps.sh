@@ -10,6 +10,7 @@ packages=(
   libyaml-cpp-dev libcli11-dev libspdlog-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev libtbb-dev
   libssl-dev                           # SHA-256 of result files (manifest.json)
+  libdeflate-dev                       # inflating PNG images (io/png_reader.cc)
   clang libclang-rt-dev                # libFuzzer targets (scripts/fuzz.sh)
 )
 

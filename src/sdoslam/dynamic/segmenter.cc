@@ -12,6 +12,7 @@
 #include "sdoslam/core/error.h"
 #include "sdoslam/dynamic/lab.h"
 #include "sdoslam/io/image_header.h"
+#include "sdoslam/io/png_reader.h"
 
 namespace sdoslam {
 
@@ -130,7 +131,7 @@ void FileSegmenter::Validate(const std::vector<std::filesystem::path>& rgb_paths
 
 Segmentation FileSegmenter::Segment(const FrontEndFrame& frame) {
   const auto path = folder_ / frame.rgb_path.filename();
-  const cv::Mat ids = cv::imread(path.string(), cv::IMREAD_UNCHANGED);
+  const cv::Mat ids = ReadImage(path, cv::IMREAD_UNCHANGED);
   if (ids.empty()) throw Error(path.string() + ": cannot read the instance mask");
   if (ids.size() != image_size_ || ids.channels() != 1)
     throw Error(path.string() + ": instance mask of the wrong size or channel count");

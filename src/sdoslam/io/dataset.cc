@@ -8,6 +8,7 @@
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
 #include "sdoslam/io/image_header.h"
+#include "sdoslam/io/png_reader.h"
 
 namespace sdoslam {
 
@@ -159,11 +160,11 @@ RgbdFrame LoadRgbdFrame(const RgbdFrameEntry& entry, size_t index, const CameraO
       check_size(cv::Size(header->width, header->height), path);
     }
   }
-  frame.bgr = cv::imread(entry.rgb_path.string(), cv::IMREAD_COLOR);
+  frame.bgr = ReadImage(entry.rgb_path, cv::IMREAD_COLOR);
   if (frame.bgr.empty()) throw Error(entry.rgb_path.string() + ": cannot decode image");
   check_size(frame.bgr.size(), entry.rgb_path);
 
-  const cv::Mat raw = cv::imread(entry.depth_path.string(), cv::IMREAD_UNCHANGED);
+  const cv::Mat raw = ReadImage(entry.depth_path, cv::IMREAD_UNCHANGED);
   if (raw.empty()) throw Error(entry.depth_path.string() + ": cannot decode image");
   if (raw.type() != CV_16UC1) {
     throw Error(entry.depth_path.string() + ": depth must be a 16-bit single-channel PNG, found " +

@@ -13,6 +13,7 @@
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/text_file.h"
+#include "sdoslam/io/png_reader.h"
 
 namespace sdoslam {
 namespace {
@@ -384,7 +385,7 @@ void WriteOmdFromTum(const std::filesystem::path& tum, const std::filesystem::pa
     if (camera.depth_factor == 1000.0) {
       std::filesystem::copy_file(e.depth_path, depth);
     } else {
-      const cv::Mat raw = cv::imread(e.depth_path.string(), cv::IMREAD_UNCHANGED);
+      const cv::Mat raw = ReadImage(e.depth_path, cv::IMREAD_UNCHANGED);
       if (raw.type() != CV_16UC1) throw Error(e.depth_path.string() + ": not 16-bit depth");
       cv::Mat millimetres;
       raw.convertTo(millimetres, CV_16UC1, 1000.0 / camera.depth_factor);

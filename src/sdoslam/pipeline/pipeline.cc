@@ -18,6 +18,7 @@
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
 #include "sdoslam/dynamic/overlay.h"
+#include "sdoslam/io/png_reader.h"
 #include "sdoslam/io/result_set.h"
 #include "sdoslam/pipeline/bounded_queue.h"
 
@@ -101,7 +102,7 @@ static_assert(kSceneFlow == kSceneFlowLabel, "the front end and tracking name la
 cv::Mat LoadOracleLabels(const std::filesystem::path& dataset, const std::filesystem::path& rgb,
                          cv::Size size) {
   const auto path = dataset / "dynamic" / rgb.filename();
-  const cv::Mat mask = cv::imread(path.string(), cv::IMREAD_GRAYSCALE);
+  const cv::Mat mask = ReadImage(path, cv::IMREAD_GRAYSCALE);
   if (mask.empty()) throw Error(path.string() + ": cannot read the ground-truth dynamic mask");
   if (mask.size() != size) throw Error(path.string() + ": mask size differs from the images");
   cv::Mat labels(size, CV_8U, cv::Scalar(kStatic));
