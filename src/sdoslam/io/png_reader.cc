@@ -107,7 +107,11 @@ std::optional<cv::Mat> DecodePng(std::span<const uint8_t> bytes) {
   const size_t bytes_per_sample = static_cast<size_t>(bit_depth / 8);
   const size_t bpp = bytes_per_sample * static_cast<size_t>(channels);
   const size_t stride = size_t{width} * bpp;
-  std::vector<uint8_t> raw(size_t{height} * (stride + 1));
+  const size_t raw_size = size_t{height} * (stride + 1);
+  // DEFLATE expands at most about 1032:1; a header that promises more than its data can hold
+  // would make us allocate gigabytes for a few bytes of file.
+  if (raw_size / 1032 > compressed.size() + 64) return std::nullopt;
+  std::vector<uint8_t> raw(raw_size);
   const std::unique_ptr<libdeflate_decompressor, DecompressorDeleter> decompressor(
       libdeflate_alloc_decompressor());
   if (!decompressor) return std::nullopt;
