@@ -55,21 +55,32 @@ std::vector<cv::Point2f> GridCorners(const StaticMotionOptions& options, const c
                                      const cv::Mat& depth) {
   CV_Assert(gray.type() == CV_8UC1 && depth.type() == CV_32FC1 && gray.size() == depth.size());
   cv::Mat strength;
-  cv::cornerMinEigenVal(gray, strength, 5, 3);
+  const int step = options.half_resolution_corners ? 2 : 1;
+  if (step == 2) {
+    cv::Mat half;
+    cv::pyrDown(gray, half);
+    cv::cornerMinEigenVal(half, strength, 3, 3);
+  } else {
+    cv::cornerMinEigenVal(gray, strength, 5, 3);
+  }
   std::vector<cv::Point2f> samples;
   for (int gy = 0; gy < options.grid_rows; ++gy) {
     for (int gx = 0; gx < options.grid_columns; ++gx) {
-      const int x0 = gx * gray.cols / options.grid_columns;
-      const int x1 = (gx + 1) * gray.cols / options.grid_columns;
-      const int y0 = gy * gray.rows / options.grid_rows;
-      const int y1 = (gy + 1) * gray.rows / options.grid_rows;
+      const int x0 = gx * strength.cols / options.grid_columns;
+      const int x1 = (gx + 1) * strength.cols / options.grid_columns;
+      const int y0 = gy * strength.rows / options.grid_rows;
+      const int y1 = (gy + 1) * strength.rows / options.grid_rows;
+      if (x1 <= x0 || y1 <= y0) continue;
       double strongest = 0;
       cv::Point at;
       cv::minMaxLoc(strength(cv::Rect(x0, y0, x1 - x0, y1 - y0)), nullptr, &strongest, nullptr,
                     &at);
       if (strongest < options.min_corner_strength) continue;
-      if (depth.at<float>(y0 + at.y, x0 + at.x) > 0)
-        samples.emplace_back(static_cast<float>(x0 + at.x), static_cast<float>(y0 + at.y));
+      // pyrDown's pixel (x, y) is centred on the full image's (2x, 2y).
+      const int x = std::min(gray.cols - 1, step * (x0 + at.x));
+      const int y = std::min(gray.rows - 1, step * (y0 + at.y));
+      if (depth.at<float>(y, x) > 0)
+        samples.emplace_back(static_cast<float>(x), static_cast<float>(y));
     }
   }
   return samples;

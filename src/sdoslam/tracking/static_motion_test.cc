@@ -2,7 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <random>
+#include <span>
 
 namespace sdoslam {
 namespace {
@@ -120,6 +122,49 @@ TEST(StaticMotion, TheSameSeedGivesTheSamePose) {
   const StaticMotionResult a = FindStaticMotion({}, Intrinsics(), samples, truth * T_box);
   const StaticMotionResult b = FindStaticMotion({}, Intrinsics(), samples, truth * T_box);
   EXPECT_TRUE(a.T_camera_world.matrix() == b.T_camera_world.matrix());
+}
+
+}  // namespace
+}  // namespace sdoslam
+
+namespace sdoslam {
+namespace {
+
+// A dark image with three bright squares: each square's corners are the only texture. A cell
+// gets its sample on a corner (within the reach of the corner detector's block, 4 px), a plain cell
+// none, and a corner without depth none: at either resolution.
+TEST(GridCorners, SamplesSitOnCornersAtFullResolutionCoordinates) {
+  cv::Mat gray(480, 640, CV_8U, cv::Scalar(20));
+  cv::Mat depth(480, 640, CV_32F, cv::Scalar(2.0f));
+  const std::array<cv::Rect, 3> squares = {cv::Rect(101, 61, 40, 40), cv::Rect(421, 301, 60, 50),
+                                           cv::Rect(251, 351, 30, 30)};
+  for (const cv::Rect& r : squares) gray(r).setTo(220);
+  depth(cv::Rect(240, 340, 60, 60)).setTo(0.0f);  // the third square has no depth
+  for (bool half : {true, false}) {
+    SCOPED_TRACE(half ? "half resolution" : "full resolution");
+    StaticMotionOptions o;
+    o.half_resolution_corners = half;
+    const std::vector<cv::Point2f> samples = GridCorners(o, gray, depth);
+    ASSERT_FALSE(samples.empty());
+    for (const cv::Point2f& s : samples) {
+      double nearest = 1e9;
+      for (const cv::Rect& r : std::span(squares).first(2)) {
+        for (const cv::Point2f c : {cv::Point2f(r.x, r.y), cv::Point2f(r.br().x, r.y),
+                                    cv::Point2f(r.x, r.br().y), cv::Point2f(r.br())}) {
+          nearest = std::min(nearest, cv::norm(s - (c - cv::Point2f(0.5f, 0.5f))));
+        }
+      }
+      EXPECT_LE(nearest, 4.0) << s;
+    }
+    // Every corner of the two squares with depth has a sample near it.
+    for (const cv::Rect& r : std::span(squares).first(2)) {
+      for (const cv::Point2f c : {cv::Point2f(r.x, r.y), cv::Point2f(r.br())}) {
+        double nearest = 1e9;
+        for (const cv::Point2f& s : samples) nearest = std::min(nearest, cv::norm(s - c));
+        EXPECT_LE(nearest, 4.0) << c;
+      }
+    }
+  }
 }
 
 }  // namespace
