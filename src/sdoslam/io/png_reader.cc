@@ -22,15 +22,48 @@ uint32_t BigEndian32(const uint8_t* p) {
   return (uint32_t{p[0]} << 24) | (uint32_t{p[1]} << 16) | (uint32_t{p[2]} << 8) | uint32_t{p[3]};
 }
 
+// Undoes the Sub filter with the running sums held in registers, one per byte of a pixel: the
+// plain loop (row[i] += row[i - bpp]) waits on a store and a load per byte, which made a 16-bit
+// mask's unfiltering take ten times its inflating.
+template <size_t kBpp>
+void UnfilterSub(uint8_t* row, size_t length) {
+  std::array<uint8_t, kBpp> left{};
+  for (size_t i = 0; i + kBpp <= length; i += kBpp) {
+    for (size_t c = 0; c < kBpp; ++c) {
+      left[c] = static_cast<uint8_t>(left[c] + row[i + c]);
+      row[i + c] = left[c];
+    }
+  }
+}
+
 // Undoes one row's filter in place (PNG specification, section 9). `previous` is the row above,
 // already unfiltered (zeros for the first row); bpp is the bytes per pixel, at least 1.
 bool Unfilter(uint8_t filter, uint8_t* row, const uint8_t* previous, size_t length, size_t bpp) {
   switch (filter) {
     case 0:  // None
       return true;
-    case 1:  // Sub
-      for (size_t i = bpp; i < length; ++i) row[i] = static_cast<uint8_t>(row[i] + row[i - bpp]);
-      return true;
+    case 1:  // Sub; length is a whole number of pixels
+      switch (bpp) {
+        case 1:
+          UnfilterSub<1>(row, length);
+          return true;
+        case 2:
+          UnfilterSub<2>(row, length);
+          return true;
+        case 4:
+          UnfilterSub<4>(row, length);
+          return true;
+        case 6:
+          UnfilterSub<6>(row, length);
+          return true;
+        case 8:
+          UnfilterSub<8>(row, length);
+          return true;
+        default:  // 8-bit RGB among them: GCC vectorises the template badly for 3 (5.0 -> 6.1 ms)
+          for (size_t i = bpp; i < length; ++i)
+            row[i] = static_cast<uint8_t>(row[i] + row[i - bpp]);
+          return true;
+      }
     case 2:  // Up
       for (size_t i = 0; i < length; ++i) row[i] = static_cast<uint8_t>(row[i] + previous[i]);
       return true;
