@@ -498,8 +498,8 @@ TEST(SlamOptionsTest, TheWrittenConfigReadsBackToTheSameOptions) {
 // both keys.
 TEST(SlamOptionsTest, EveryDeprecatedKeyReadsAsItsNewKeyWithOneWarning) {
   const auto aliases = testing::ExpandAliases(SlamOptionAliases(), ListFields<SlamOptions>());
-  // The consistency section's 33 settings, the two BA iteration counts and the vocabulary.
-  EXPECT_EQ(aliases.size(), 36u);
+  // The consistency section's 35 settings, the two BA iteration counts and the vocabulary.
+  EXPECT_EQ(aliases.size(), 38u);
   const auto defaults = testing::FieldValues(SlamOptions());
   for (const auto& [old_path, new_path] : aliases) {
     SCOPED_TRACE(old_path + " -> " + new_path);

@@ -28,6 +28,7 @@ void SceneFlowOptions::Check(const std::string& path) const {
   if (track_window < 5 || track_window % 2 == 0)
     throw Error(path + "track_window must be odd and >= 5");
   if (track_levels < 0 || track_levels > 6) throw Error(path + "track_levels must be in [0, 6]");
+  if (track_iterations < 1) throw Error(path + "track_iterations must be >= 1");
   if (!(max_track_error > 0)) throw Error(path + "max_track_error must be positive");
   if (!(max_round_trip_px > 0)) throw Error(path + "max_round_trip_px must be positive");
   if (!(skip_round_trip_px >= 0)) throw Error(path + "skip_round_trip_px must be >= 0");
@@ -146,7 +147,7 @@ void TrackPointsBack(const SceneFlowOptions& o, const LkPyramid& current, const 
   cv::calcOpticalFlowPyrLK(
       current, previous, points, *previous_points, *found, error,
       cv::Size(o.track_window, o.track_window), o.track_levels,
-      cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.03),
+      cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, o.track_iterations, 0.03),
       guesses != nullptr ? cv::OPTFLOW_USE_INITIAL_FLOW : 0);
   const float max_x = static_cast<float>(previous[0].cols - 1);
   const float max_y = static_cast<float>(previous[0].rows - 1);
@@ -173,7 +174,7 @@ void TrackPointsBack(const SceneFlowOptions& o, const LkPyramid& current, const 
   cv::calcOpticalFlowPyrLK(
       previous, current, starts, returned, returned_found, error,
       cv::Size(o.track_window, o.track_window), o.track_levels,
-      cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.03),
+      cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, o.track_iterations, 0.03),
       cv::OPTFLOW_USE_INITIAL_FLOW);
   for (size_t k = 0; k < kept.size(); ++k) {
     const cv::Point2f miss = returned[k] - points[kept[k]];

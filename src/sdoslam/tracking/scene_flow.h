@@ -65,6 +65,11 @@ struct SceneFlowOptions {
   // boxes 5.6 -> 5.0, people 4.5 -> 4.8, mixed 6.5 -> 6.6).
   int track_window = 15;
   int track_levels = 2;
+  // Lucas–Kanade's iterations per pyramid level (it also stops at 0.03 px). 10, not OpenCV's
+  // customary 20: a static point starts at its prediction and settles in a few; the points
+  // that use them all are on movers, slipping anyway. 1.5 ms less CPU a frame, sdo ATE over
+  // 13 real-frame sequences 70.6 -> 70.5 mm summed.
+  int track_iterations = 10;
   double max_track_error = 20.0;
   // ... and one that, tracked forward again, misses its start by more than this (px): dark or
   // repetitive texture and occlusions make Lucas–Kanade slip, and a slipped correspondence looks
@@ -118,6 +123,7 @@ struct SceneFlowOptions {
     visit("established_observations", o.established_observations);
     visit("track_window", o.track_window);
     visit("track_levels", o.track_levels);
+    visit("track_iterations", o.track_iterations);
     visit("max_track_error", o.max_track_error);
     visit("max_round_trip_px", o.max_round_trip_px);
     visit("skip_round_trip_px", o.skip_round_trip_px);
