@@ -177,7 +177,7 @@ TEST(TrackPointsBack, OnKeptPyramidsMatchesOpenCvOnImagesAndOwnsTheImage) {
   cv::calcOpticalFlowPyrLK(
       current, previous, points, opencv_back, opencv_found, error,
       cv::Size(o.track_window, o.track_window), o.track_levels,
-      cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.03));
+      cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, o.track_iterations, 0.03));
   // The images handed over are views into larger buffers with room around them: the kind of
   // image OpenCV would take as a pyramid's level 0 as it is, if allowed to reuse it.
   const auto in_larger_buffer = [](const cv::Mat& image) {
