@@ -105,7 +105,9 @@ TEST_F(Interrupts, TwentyRandomInterruptsLeaveTheOldSetOrTheNewNeverAMix) {
       if (after != before) {
         ASSERT_FALSE(after.empty());
         // With one signal, a new set means the run had finished before the signal came.
-        if (!twice) EXPECT_EQ(VerifyResultSet(out).status, "complete");
+        if (!twice) {
+          EXPECT_EQ(VerifyResultSet(out).status, "complete");
+        }
       }
       continue;
     }
