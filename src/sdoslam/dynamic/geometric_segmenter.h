@@ -24,11 +24,11 @@ namespace sdoslam {
 // Normals come from OpenCV's rgbd module (RgbdNormals, FALS); the edge test and the region
 // growing are a few loops of our own, since no library here segments by concavity.
 struct GeometricSegmenterOptions {
-  // px; segmentation runs at this width (aspect kept). 240 rather than 320: over the 13
-  // real-background sequences sdo's ATE summed 68.0 -> 63.6 mm and the unknown movers' mask IoU
-  // rose (swinging boxes 0.71 -> 0.73, mixed 0.76 -> 0.79), at 5.2 ms a frame against 8.2
-  // (a 5-px normal window spans more of the surface: fewer false creases). 160 lost both.
-  int work_width = 240;
+  // px; segmentation runs at this width (aspect kept). Not 240: that was better on the boxes of
+  // the real-background plays (ATE summed over 13 sequences 68.0 -> 63.6 mm, 3 ms cheaper), but
+  // merged a walking-up person's head and torso into one segment that the motion-boundary test
+  // no longer selected, and on person_fills_view sdo followed the person (59-74 mm against 6-7).
+  int work_width = 320;
   double depth_step = 0.04;            // an edge where neighbours' depths differ by this fraction
   double depth_step_min_m = 0.01;      // ... and by at least this many metres (sensor noise)
   double concave_angle_deg = 25;       // an edge where the surface folds concavely by this much

@@ -33,14 +33,6 @@ FrontEndFrame ProfileFrame(const std::function<double(double)>& depth_of_column)
 // dz/dX = slope: z = z0 / (1 − slope · (x − cx) / fx).
 double Plane(double x, double z0, double slope) { return z0 / (1 - slope * (x - 319.5) / 525); }
 
-// The geometry tests below count pixels at 320 x 240, half the image: one work pixel per two
-// image columns keeps their arithmetic exact. The default width is tested on rendered rooms.
-GeometricSegmenterOptions HalfResolution() {
-  GeometricSegmenterOptions o;
-  o.work_width = 320;
-  return o;
-}
-
 int LargestSegmentArea(const Segmentation& s) {
   int largest = 0;
   for (int l = 0; l < s.count; ++l) largest = std::max(largest, cv::countNonZero(s.labels == l));
@@ -49,7 +41,7 @@ int LargestSegmentArea(const Segmentation& s) {
 
 // A slanted plane has no edges: one segment, no false crease from the slope.
 TEST(GeometricSegmenter, ASlantedPlaneIsOneSegment) {
-  GeometricSegmenter segmenter(HalfResolution(), kK, kImage);
+  GeometricSegmenter segmenter({}, kK, kImage);
   const Segmentation s = segmenter.Segment(ProfileFrame([](double x) { return Plane(x, 2, 1.0); }));
   ASSERT_EQ(s.labels.size(), cv::Size(320, 240));
   EXPECT_EQ(s.count, 1);
@@ -61,7 +53,7 @@ TEST(GeometricSegmenter, ASlantedPlaneIsOneSegment) {
 // (the fold farther away than both halves' extension: the corner of a room) is concave and cuts;
 // a ridge (the fold nearer: the edge of a box) is convex and does not.
 TEST(GeometricSegmenter, AConcaveFoldCutsAConvexOneDoesNot) {
-  GeometricSegmenter segmenter(HalfResolution(), kK, kImage);
+  GeometricSegmenter segmenter({}, kK, kImage);
   // Valley: the left half rises towards the camera to the left, the right half to the right.
   const auto valley = [](double x) { return x < 320 ? Plane(x, 2, 1.0) : Plane(x, 2, -1.0); };
   const auto ridge = [](double x) { return x < 320 ? Plane(x, 2, -1.0) : Plane(x, 2, 1.0); };
@@ -80,7 +72,7 @@ TEST(GeometricSegmenter, AConcaveFoldCutsAConvexOneDoesNot) {
 // A surface in front of another: the step is an edge, each side keeps its own pixels, and the
 // edge band goes to the surface of its own depth.
 TEST(GeometricSegmenter, ADepthStepSeparatesTheNearSurfaceWithItsOutline) {
-  GeometricSegmenter segmenter(HalfResolution(), kK, kImage);
+  GeometricSegmenter segmenter({}, kK, kImage);
   const Segmentation s =
       segmenter.Segment(ProfileFrame([](double x) { return x >= 200 && x < 440 ? 1.5 : 3.0; }));
   EXPECT_EQ(s.count, 3);  // left wall, board, right wall
