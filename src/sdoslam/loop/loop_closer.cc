@@ -24,6 +24,7 @@ void LoopClosingOptions::Check(const std::string& path) const {
   ransac.Check(path + "ransac.");
   pose_graph.Check(path + "pose_graph.");
   global_ba.Check(path + "global_ba.");
+  if (max_global_ba_observations < 1) throw Error(path + "max_global_ba_observations must be >= 1");
 }
 
 namespace {
@@ -464,6 +465,15 @@ void LoopCloser::GlobalBundleAdjustment(std::unique_lock<std::mutex>* lock,
     }
   }
   if (keyframes.size() < 2 || points.empty()) return;
+  record->global_ba_observations = static_cast<int>(ba.observations.size());
+  if (record->global_ba_observations > options_.max_global_ba_observations) {
+    record->global_ba_skipped = true;
+    spdlog::warn(
+        "loop closing: global BA over {} keyframes and {} observations skipped (more than "
+        "loop_closing.max_global_ba_observations, {}); the pose graph's correction stands",
+        keyframes.size(), ba.observations.size(), options_.max_global_ba_observations);
+    return;
+  }
   const PinholeIntrinsics intrinsics = keyframes.front()->frame.geometry->intrinsics;
   const uint64_t epoch = map_->correction_epoch();
   const bool unlocked = lock->owns_lock();

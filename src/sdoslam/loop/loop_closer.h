@@ -45,6 +45,13 @@ struct LoopClosingOptions {
   // both visits see. Threaded, it is solved without the map lock.
   bool global_bundle_adjustment = true;
   BundleAdjustmentOptions global_ba{10, 10};
+  // A global BA over more observations than this is not run; the pose graph's correction
+  // stands (loops.csv says so). Its cost grows faster than the map: the long loop's 19
+  // keyframes (5,100 observations) take 0.2 s, but where conventional mode tracks people as
+  // static (3,000 frames of walking_xyz) the map kept growing, 153 keyframes (56,000
+  // observations) took 6-10 s, 245 (86,000) 12-23 s, and a later closure 215 s, with tracking
+  // stopped meanwhile in a sequential run. sdo's 3,000-frame runs keep 13-35 keyframes alive.
+  int max_global_ba_observations = 100000;
   void Check(const std::string& path = "loop_closing.") const;  // Error names path + setting
   // Every setting, as its config key (core/config.h: ReadFields, WriteFields).
   template <class Options, class Visitor>
@@ -60,6 +67,7 @@ struct LoopClosingOptions {
     visit("pose_graph", o.pose_graph);
     visit("global_bundle_adjustment", o.global_bundle_adjustment);
     visit("global_ba", o.global_ba);
+    visit("max_global_ba_observations", o.max_global_ba_observations);
   }
 };
 
@@ -73,7 +81,9 @@ struct LoopRecord {
   int graph_keyframes = 0, graph_edges = 0;
   double correction_m = 0;  // how far the keyframe moved, metres
   double ms = 0;
+  int global_ba_observations = 0;    // of the global BA, run or not
   double global_ba_ms = 0;           // 0: not run
+  bool global_ba_skipped = false;    // more observations than max_global_ba_observations
   bool global_ba_discarded = false;  // threaded: the map was corrected again meanwhile
 };
 

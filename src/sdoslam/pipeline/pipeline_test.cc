@@ -284,6 +284,7 @@ TEST(PipelineLoopClosing, PeopleWalkingThroughTheLoopDoNotStopItClosing) {
                      std::to_string(with.loops[0].loop_frame_index) + ","),
             std::string::npos)
       << log;
+  EXPECT_NE(log.find(",run\n"), std::string::npos) << "the global BA ran: " << log;
 }
 
 TEST(Pipeline, SdoOnTheRealStaticDeskIsAsGoodAsConventional) {

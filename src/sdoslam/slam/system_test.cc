@@ -440,6 +440,27 @@ TEST_F(SlamLoopClosing, TheLongLoopIsClosedAtTheRevisitAndTheErrorAtLeastHalved)
     EXPECT_LE(run->loops[0].loop_frame_index, frames / 5);
     EXPECT_LE(Ate(*run), 0.5 * Ate(without));
   }
+  // The global BA ran over the whole map after the pose graph. With a budget one observation
+  // short of its size it is skipped (the same loop: the runs agree until then), and the pose
+  // graph's correction alone stands.
+  ASSERT_FALSE(with.loops.empty());
+  const LoopRecord& closed = with.loops[0];
+  EXPECT_GT(closed.global_ba_observations, 1000);
+  EXPECT_GT(closed.global_ba_ms, 0);
+  EXPECT_FALSE(closed.global_ba_skipped);
+  SlamOptions budget;
+  budget.loop_closing.max_global_ba_observations = closed.global_ba_observations - 1;
+  const RunResult skipped =
+      RunSequence(*dir_ / "seq", synth::SyntheticCamera(), 0, {}, true, nullptr, budget);
+  std::cout << "global BA over " << closed.global_ba_observations << " observations, "
+            << closed.global_ba_ms << " ms; skipped: ATE " << Ate(skipped) << '\n';
+  ASSERT_FALSE(skipped.loops.empty());
+  EXPECT_EQ(skipped.loops[0].frame_index, closed.frame_index);
+  EXPECT_EQ(skipped.loops[0].global_ba_observations, closed.global_ba_observations);
+  EXPECT_TRUE(skipped.loops[0].global_ba_skipped);
+  EXPECT_EQ(skipped.loops[0].global_ba_ms, 0);
+  EXPECT_EQ(skipped.trajectory.size(), frames);
+  EXPECT_LE(Ate(skipped), 0.5 * Ate(without));
 }
 
 TEST(SlamOptionsTest, ConfigSectionsAreReadAndUnknownKeysRejected) {
@@ -642,6 +663,8 @@ TEST(SlamOptionsTest, CheckMessagesNameTheConfigPath) {
             "c.yaml: mapping.bundle_adjustment.iterations must be >= 0");
   EXPECT_EQ(ErrorOf("loop_closing:\n  global_ba:\n    refine_iterations: -1\n"),
             "c.yaml: loop_closing.global_ba.refine_iterations must be >= 0");
+  EXPECT_EQ(ErrorOf("loop_closing:\n  max_global_ba_observations: 0\n"),
+            "c.yaml: loop_closing.max_global_ba_observations must be >= 1");
   EXPECT_EQ(ErrorOf("tracking:\n  consistency:\n    static_motion:\n      hypotheses: 0\n"),
             "c.yaml: tracking.consistency.static_motion.hypotheses must be >= 1");
   EXPECT_EQ(ErrorOf("tracking:\n  consistency:\n    track_window: 4\n"),
