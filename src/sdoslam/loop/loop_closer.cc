@@ -21,6 +21,7 @@ void LoopClosingOptions::Check(const std::string& path) const {
   if (min_projected_inliers < min_inliers)
     throw Error(path + "min_projected_inliers must be >= " + path + "min_inliers");
   if (essential_min_weight < 1) throw Error(path + "essential_min_weight must be >= 1");
+  if (essential_max_covisible < 0) throw Error(path + "essential_max_covisible must be >= 0");
   ransac.Check(path + "ransac.");
   pose_graph.Check(path + "pose_graph.");
   global_ba.Check(path + "global_ba.");
@@ -381,11 +382,19 @@ void LoopCloser::Correct(KeyFrame* keyframe, const Verified& verified, LoopRecor
              graph.poses[static_cast<size_t>(node.at(a))] *
                  graph.poses[static_cast<size_t>(node.at(b))].inverse());
   }
+  std::set<uint64_t> strongest;
   for (KeyFrame* kf : keyframes) {
     if (kf->parent != nullptr) add_edge(kf->id, kf->parent->id, measured(kf->id, kf->parent->id));
+    // The strongest links to older keyframes, in the covisibility's id order.
+    strongest.clear();
+    for (const KeyFrame* n : kf->best_covisible) {
+      if (static_cast<int>(strongest.size()) >= options_.essential_max_covisible) break;
+      const auto w = kf->covisibility.find(n->id);
+      if (w == kf->covisibility.end() || w->second < options_.essential_min_weight) break;
+      if (n->id < kf->id) strongest.insert(n->id);
+    }
     for (const auto& [id, weight] : kf->covisibility) {
-      if (weight >= options_.essential_min_weight && id < kf->id)
-        add_edge(kf->id, id, measured(kf->id, id));
+      if (strongest.count(id)) add_edge(kf->id, id, measured(kf->id, id));
     }
   }
   record->graph_keyframes = static_cast<int>(graph.poses.size());

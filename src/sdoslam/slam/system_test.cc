@@ -442,7 +442,8 @@ TEST_F(SlamLoopClosing, TheLongLoopIsClosedAtTheRevisitAndTheErrorAtLeastHalved)
   }
   // The global BA ran over the whole map after the pose graph. With a budget one observation
   // short of its size it is skipped (the same loop: the runs agree until then), and the pose
-  // graph's correction alone stands.
+  // graph's correction alone stands, here over a sparser essential graph (one covisibility
+  // link per keyframe at most): the loop is still closed and the error still halved.
   ASSERT_FALSE(with.loops.empty());
   const LoopRecord& closed = with.loops[0];
   EXPECT_GT(closed.global_ba_observations, 1000);
@@ -450,14 +451,21 @@ TEST_F(SlamLoopClosing, TheLongLoopIsClosedAtTheRevisitAndTheErrorAtLeastHalved)
   EXPECT_FALSE(closed.global_ba_skipped);
   SlamOptions budget;
   budget.loop_closing.max_global_ba_observations = closed.global_ba_observations - 1;
+  budget.loop_closing.essential_max_covisible = 1;
   const RunResult skipped =
       RunSequence(*dir_ / "seq", synth::SyntheticCamera(), 0, {}, true, nullptr, budget);
   std::cout << "global BA over " << closed.global_ba_observations << " observations, "
-            << closed.global_ba_ms << " ms; skipped: ATE " << Ate(skipped) << '\n';
+            << closed.global_ba_ms << " ms; skipped: ATE " << Ate(skipped) << "; pose graph edges "
+            << closed.graph_edges << " of " << closed.graph_keyframes
+            << " keyframes, at most one link each: "
+            << (skipped.loops.empty() ? 0 : skipped.loops[0].graph_edges) << '\n';
   ASSERT_FALSE(skipped.loops.empty());
   EXPECT_EQ(skipped.loops[0].frame_index, closed.frame_index);
   EXPECT_EQ(skipped.loops[0].global_ba_observations, closed.global_ba_observations);
   EXPECT_TRUE(skipped.loops[0].global_ba_skipped);
+  // The spanning tree, one link each and the loop's links.
+  EXPECT_LT(skipped.loops[0].graph_edges, closed.graph_edges);
+  EXPECT_LE(skipped.loops[0].graph_edges, 2 * closed.graph_keyframes + 20);
   EXPECT_EQ(skipped.loops[0].global_ba_ms, 0);
   EXPECT_EQ(skipped.trajectory.size(), frames);
   EXPECT_LE(Ate(skipped), 0.5 * Ate(without));
@@ -665,6 +673,8 @@ TEST(SlamOptionsTest, CheckMessagesNameTheConfigPath) {
             "c.yaml: loop_closing.global_ba.refine_iterations must be >= 0");
   EXPECT_EQ(ErrorOf("loop_closing:\n  max_global_ba_observations: 0\n"),
             "c.yaml: loop_closing.max_global_ba_observations must be >= 1");
+  EXPECT_EQ(ErrorOf("loop_closing:\n  essential_max_covisible: -1\n"),
+            "c.yaml: loop_closing.essential_max_covisible must be >= 0");
   EXPECT_EQ(ErrorOf("tracking:\n  consistency:\n    static_motion:\n      hypotheses: 0\n"),
             "c.yaml: tracking.consistency.static_motion.hypotheses must be >= 1");
   EXPECT_EQ(ErrorOf("tracking:\n  consistency:\n    track_window: 4\n"),
