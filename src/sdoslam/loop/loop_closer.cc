@@ -334,12 +334,17 @@ void LoopCloser::Correct(KeyFrame* keyframe, const Verified& verified, LoopRecor
   }
   record->fused_points = fused;
   // 3. New covisibility links across the loop are its edges in the essential graph.
+  // The strongest links of each keyframe, as in the essential graph: in a dense map each loop
+  // would otherwise add its connected keyframes times the loop side's.
   for (KeyFrame* kf : connected) {
     if (kf->bad) continue;
     map_->UpdateConnections(kf);
-    for (const auto& [id, weight] : kf->covisibility) {
-      if (connected_ids.count(id) || linked_before[kf->id].count(id)) continue;
-      loop_edges_.insert(std::minmax(kf->id, id));
+    int taken = 0;
+    for (const KeyFrame* n : kf->best_covisible) {
+      if (taken >= options_.essential_max_covisible) break;
+      if (connected_ids.count(n->id) || linked_before[kf->id].count(n->id)) continue;
+      loop_edges_.insert(std::minmax(kf->id, n->id));
+      ++taken;
     }
   }
   loop_edges_.insert(std::minmax(keyframe->id, loop->id));

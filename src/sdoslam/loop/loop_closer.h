@@ -38,7 +38,8 @@ struct LoopClosingOptions {
   // Essential graph: covisibility edges of at least this weight (shared points) join the
   // spanning tree and the loop edges in the pose graph (ORB-SLAM2: 100).
   int essential_min_weight = 100;
-  // ... the strongest this many per keyframe, to older keyframes. The pose graph's cost follows
+  // ... the strongest this many per keyframe, to older keyframes; and of the links a loop
+  // makes, the strongest this many per keyframe it moved. The pose graph's cost follows
   // its edges: where conventional mode tracks people as static (3,000 frames of walking_xyz) a
   // keyframe came every 1.5 frames, each had 70 such links, and the last closures' graphs of
   // 42,000-55,000 edges took 27-131 s against 2 s for 14,000.
