@@ -8,6 +8,7 @@
 #include "sdoslam/dynamic/geometric_segmenter.h"
 #include "sdoslam/dynamic/lab.h"
 #include "sdoslam/features/orb_extractor.h"
+#include "sdoslam/map/map.h"
 #include "sdoslam/optim/optimizer.h"
 #include "sdoslam/synth/renderer.h"
 #include "sdoslam/synth/scenarios.h"
@@ -109,6 +110,39 @@ void BM_OptimizePose(benchmark::State& state) {
     benchmark::DoNotOptimize(OptimizePose(k, initial, points, observations).num_inliers);
 }
 BENCHMARK(BM_OptimizePose)->Arg(300)->Arg(800)->Unit(benchmark::kMillisecond);
+
+// A map point's representative descriptor with state.range(0) observers: quadratic up to
+// MapPoint::kMaxDescriptorCandidates, flat beyond (conventional tracking in a dynamic scene
+// gives points hundreds of observers).
+void BM_UpdateDescriptor(benchmark::State& state) {
+  CameraOptions o;
+  o.fx = o.fy = 500;
+  o.cx = 320;
+  o.cy = 240;
+  const Camera camera(o);
+  const OrbExtractor extractor(OrbOptions{});
+  const auto geometry = std::make_shared<FrameGeometry>(camera, extractor, 40.0, 3.0);
+  const cv::Mat blank(480, 640, CV_8UC3, cv::Scalar::all(0));
+  const cv::Mat depth(480, 640, CV_32F, cv::Scalar(2.0f));
+  cv::RNG rng(1);
+  Map map;
+  MapPoint* p = nullptr;
+  for (int64_t v = 0; v < state.range(0); ++v) {
+    Frame frame(static_cast<size_t>(v), static_cast<double>(v), blank, depth, geometry, extractor);
+    frame.keypoints = {cv::KeyPoint(320, 240, 31)};
+    frame.descriptors = cv::Mat(1, 32, CV_8U);
+    rng.fill(frame.descriptors, cv::RNG::UNIFORM, 0, 256);
+    frame.map_points = {nullptr};
+    KeyFrame* kf = map.AddKeyFrame(std::move(frame));
+    if (p == nullptr) p = map.AddMapPoint(Eigen::Vector3d(0, 0, 2), kf);
+    map.AddObservation(p, kf, 0);
+  }
+  for (auto _ : state) {
+    p->UpdateDescriptor();
+    benchmark::DoNotOptimize(p->descriptor.data);
+  }
+}
+BENCHMARK(BM_UpdateDescriptor)->Arg(30)->Arg(64)->Arg(200)->Arg(500)->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 }  // namespace sdoslam

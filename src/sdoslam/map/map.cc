@@ -21,11 +21,22 @@ void MapPoint::UpdateFromObservations() {
 
 void MapPoint::UpdateDescriptor() {
   if (bad || observations.empty()) return;
+  // The choice is quadratic in the candidates, so a point seen by hundreds of keyframes (a map
+  // that keeps every keyframe, as conventional tracking does with people in view) takes at
+  // most kMaxDescriptorCandidates of them, spread evenly over its observations from the oldest
+  // to the newest so that every stretch of viewpoints has a say. Below the cap every
+  // observation is a candidate, as before.
+  const size_t total = observations.size();
+  const size_t take = std::min(total, kMaxDescriptorCandidates);
   std::vector<const uint8_t*> descriptors;
-  descriptors.reserve(observations.size());
+  descriptors.reserve(take);
+  // Candidate k is observation floor(k * total / take): every observation when take == total.
+  size_t index = 0, next = 0;
   for (const auto& [kf_id, obs] : observations) {
+    if (index++ != next) continue;
     const auto& [kf, i] = obs;
     descriptors.push_back(kf->frame.descriptors.ptr<uint8_t>(i));
+    next = descriptors.size() * total / take;
   }
   // Representative descriptor: least median distance to the others (the first on ties).
   const size_t n = descriptors.size();

@@ -36,8 +36,10 @@ class MapPoint {
   // Recomputes descriptor, normal and distance range from the observations.
   void UpdateFromObservations();
   // The observation's descriptor with the least median distance to the others: quadratic in
-  // the observations, so only when they change.
+  // the candidates, so only when the observations change. Past kMaxDescriptorCandidates
+  // observations, that many evenly spread ones are the candidates.
   void UpdateDescriptor();
+  static constexpr size_t kMaxDescriptorCandidates = 64;
   // Mean viewing direction and scale-invariance range: after the position or the observations
   // change.
   void UpdateNormalAndDepth();

@@ -359,5 +359,44 @@ TEST_F(MapTest, PointsCulledAfterAFrameWaitForTheNextOne) {
   ExpectConsistent();
 }
 
+// A point seen by many keyframes: the representative descriptor is the appearance most of its
+// observations share, wherever in time they lie. Here the oldest 40 and the newest 40 views
+// show two other appearances and the 120 between them the main one, so a choice made from the
+// first or the last kMaxDescriptorCandidates views alone would pick an outlier.
+TEST_F(MapTest, ThePointDescriptorOfManyViewsIsTheirMajorityAppearance) {
+  constexpr int kViews = 200;
+  ASSERT_GT(static_cast<size_t>(kViews), MapPoint::kMaxDescriptorCandidates);
+  cv::RNG rng(7);
+  auto random_descriptor = [&rng] {
+    cv::Mat d(1, 32, CV_8U);
+    rng.fill(d, cv::RNG::UNIFORM, 0, 256);
+    return d;
+  };
+  const cv::Mat main = random_descriptor(), oldest = random_descriptor(),
+                newest = random_descriptor();
+  // Each view flips up to three bits of its appearance: sensor noise.
+  auto noisy = [&rng](const cv::Mat& d) {
+    cv::Mat v = d.clone();
+    const int flips = rng.uniform(0, 4);
+    for (int f = 0; f < flips; ++f) v.at<uint8_t>(0, rng.uniform(0, 32)) ^= 1 << rng.uniform(0, 8);
+    return v;
+  };
+  // Keyframes of a blank image (no features of their own): each is given one feature.
+  const cv::Mat blank(480, 640, CV_8UC3, cv::Scalar::all(0));
+  const cv::Mat depth(480, 640, CV_32F, cv::Scalar(2.0f));
+  MapPoint* p = nullptr;
+  for (int v = 0; v < kViews; ++v) {
+    Frame frame(static_cast<size_t>(v), v, blank, depth, geometry_, extractor_);
+    frame.keypoints = {cv::KeyPoint(320, 240, 31)};
+    frame.descriptors = noisy(v < 40 ? oldest : v >= kViews - 40 ? newest : main);
+    frame.map_points = {nullptr};
+    KeyFrame* kf = map_.AddKeyFrame(std::move(frame));
+    if (p == nullptr) p = map_.AddMapPoint(Eigen::Vector3d(0, 0, 2), kf);
+    map_.AddObservation(p, kf, 0);
+  }
+  p->UpdateDescriptor();
+  EXPECT_LE(DescriptorDistance(p->descriptor.ptr<uint8_t>(), main.ptr<uint8_t>()), 3);
+}
+
 }  // namespace
 }  // namespace sdoslam
