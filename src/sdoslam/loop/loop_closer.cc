@@ -47,6 +47,22 @@ std::vector<MapPoint*> LoopSidePoints(const KeyFrame* loop) {
   return points;
 }
 
+// The ids of kf's strongest covisibility links that `accept` lets through, at most `count`,
+// strongest first; links of fewer than `min_weight` shared points end the search. The essential
+// graph and a loop's new links take each keyframe's few strongest: in a dense map, all of them
+// grow with the map.
+template <typename Accept>
+std::vector<uint64_t> StrongestLinks(const KeyFrame& kf, int count, int min_weight, Accept accept) {
+  std::vector<uint64_t> ids;
+  for (const KeyFrame* n : kf.best_covisible) {
+    if (static_cast<int>(ids.size()) >= count) break;
+    const auto w = kf.covisibility.find(n->id);
+    if (w == kf.covisibility.end() || w->second < min_weight) break;
+    if (accept(*n)) ids.push_back(n->id);
+  }
+  return ids;
+}
+
 }  // namespace
 
 LoopCloser::LoopCloser(Map* map, KeyFramePlaces* places, const LoopClosingOptions& options)
@@ -77,7 +93,10 @@ LoopResult LoopCloser::Process(KeyFrame* keyframe, std::mutex* map_mutex,
   for (KeyFrame* candidate : candidates) {
     if (candidate->bad) continue;
     Verified verified;
-    if (!Verify(keyframe, candidate, &verified)) continue;
+    const auto verify_start = std::chrono::steady_clock::now();
+    const bool verified_ok = Verify(keyframe, candidate, &verified);
+    result.record.verify_ms += MsSince(verify_start);
+    if (!verified_ok) continue;
     Correct(keyframe, verified, &result.record);
     if (options_.global_bundle_adjustment)
       GlobalBundleAdjustment(&lock, frame_done, between_frames, &result.record);
@@ -280,6 +299,7 @@ void LoopCloser::Correct(KeyFrame* keyframe, const Verified& verified, LoopRecor
   record->correction_m =
       (keyframe->CameraCentre() - verified.T_camera_world.inverse().translation()).norm();
 
+  auto stage_start = std::chrono::steady_clock::now();
   std::map<uint64_t, Eigen::Isometry3d> before;  // every good keyframe's pose before the loop
   for (const auto& [id, kf] : map_->keyframes()) {
     if (!kf->bad) before[id] = kf->pose();
@@ -339,15 +359,17 @@ void LoopCloser::Correct(KeyFrame* keyframe, const Verified& verified, LoopRecor
   for (KeyFrame* kf : connected) {
     if (kf->bad) continue;
     map_->UpdateConnections(kf);
-    int taken = 0;
-    for (const KeyFrame* n : kf->best_covisible) {
-      if (taken >= options_.essential_max_covisible) break;
-      if (connected_ids.count(n->id) || linked_before[kf->id].count(n->id)) continue;
-      loop_edges_.insert(std::minmax(kf->id, n->id));
-      ++taken;
+    const std::set<uint64_t>& old_links = linked_before[kf->id];
+    for (const uint64_t id :
+         StrongestLinks(*kf, options_.essential_max_covisible, 0, [&](const KeyFrame& n) {
+           return !connected_ids.count(n.id) && !old_links.count(n.id);
+         })) {
+      loop_edges_.insert(std::minmax(kf->id, id));
     }
   }
   loop_edges_.insert(std::minmax(keyframe->id, loop->id));
+  record->fuse_ms = MsSince(stage_start);
+  stage_start = std::chrono::steady_clock::now();
 
   // 4. The pose graph spreads the correction: the loop keyframe holds the gauge, spanning-tree
   // and strong covisibility edges keep the odometry measured before the loop, loop edges what
@@ -387,17 +409,13 @@ void LoopCloser::Correct(KeyFrame* keyframe, const Verified& verified, LoopRecor
              graph.poses[static_cast<size_t>(node.at(a))] *
                  graph.poses[static_cast<size_t>(node.at(b))].inverse());
   }
-  std::set<uint64_t> strongest;
   for (KeyFrame* kf : keyframes) {
     if (kf->parent != nullptr) add_edge(kf->id, kf->parent->id, measured(kf->id, kf->parent->id));
     // The strongest links to older keyframes, in the covisibility's id order.
-    strongest.clear();
-    for (const KeyFrame* n : kf->best_covisible) {
-      if (static_cast<int>(strongest.size()) >= options_.essential_max_covisible) break;
-      const auto w = kf->covisibility.find(n->id);
-      if (w == kf->covisibility.end() || w->second < options_.essential_min_weight) break;
-      if (n->id < kf->id) strongest.insert(n->id);
-    }
+    const std::vector<uint64_t> links =
+        StrongestLinks(*kf, options_.essential_max_covisible, options_.essential_min_weight,
+                       [&](const KeyFrame& n) { return n.id < kf->id; });
+    const std::set<uint64_t> strongest(links.begin(), links.end());
     for (const auto& [id, weight] : kf->covisibility) {
       if (strongest.count(id)) add_edge(kf->id, id, measured(kf->id, id));
     }
@@ -405,6 +423,8 @@ void LoopCloser::Correct(KeyFrame* keyframe, const Verified& verified, LoopRecor
   record->graph_keyframes = static_cast<int>(graph.poses.size());
   record->graph_edges = static_cast<int>(graph.edges.size());
   OptimizePoseGraph(&graph, options_.pose_graph);
+  record->pose_graph_ms = MsSince(stage_start);
+  stage_start = std::chrono::steady_clock::now();
 
   // 5. Every point follows the keyframe it was corrected with, or its reference keyframe.
   std::map<uint64_t, Eigen::Isometry3d> to_new;  // keyframe id -> pre-graph world -> new world
@@ -443,6 +463,7 @@ void LoopCloser::Correct(KeyFrame* keyframe, const Verified& verified, LoopRecor
     if (b != before.end()) change_by_keyframe[kf->id] = b->second.inverse() * kf->pose();
   }
   map_->NoteCorrection(std::move(change_by_keyframe));
+  record->points_ms = MsSince(stage_start);
 }
 
 void LoopCloser::GlobalBundleAdjustment(std::unique_lock<std::mutex>* lock,
@@ -462,31 +483,39 @@ void LoopCloser::GlobalBundleAdjustment(std::unique_lock<std::mutex>* lock,
     keyframes.push_back(kf.get());
   }
   // Points by id: threaded, local mapping may cull and free a point while the BA is solved
-  // without the lock (keyframes are never freed).
-  std::vector<uint64_t> points;
+  // without the lock (keyframes are never freed). Counted before anything is copied, so that
+  // a BA over the budget costs only the count.
+  std::vector<MapPoint*> adjustable;
+  int observation_count = 0;
   for (const auto& [id, p] : map_->points()) {
     if (p->bad) continue;
     int observed = 0;
     for (const auto& [kf_id, obs] : p->observations) observed += pose_index.count(kf_id) > 0;
     if (observed < 2) continue;
+    adjustable.push_back(p.get());
+    observation_count += observed;
+  }
+  if (keyframes.size() < 2 || adjustable.empty()) return;
+  record->global_ba_observations = observation_count;
+  if (observation_count > options_.max_global_ba_observations) {
+    record->global_ba_skipped = true;
+    spdlog::warn(
+        "loop closing: global BA over {} keyframes and {} observations skipped (more than "
+        "loop_closing.max_global_ba_observations, {}); the pose graph's correction stands",
+        keyframes.size(), observation_count, options_.max_global_ba_observations);
+    return;
+  }
+  std::vector<uint64_t> points;
+  ba.observations.reserve(static_cast<size_t>(observation_count));
+  for (const MapPoint* p : adjustable) {
     const int index = static_cast<int>(points.size());
-    points.push_back(id);
+    points.push_back(p->id);
     ba.points.push_back(p->position);
     for (const auto& [kf_id, obs] : p->observations) {
       const auto it = pose_index.find(kf_id);
       if (it == pose_index.end()) continue;
       ba.observations.push_back({it->second, index, obs.first->frame.Observation(obs.second)});
     }
-  }
-  if (keyframes.size() < 2 || points.empty()) return;
-  record->global_ba_observations = static_cast<int>(ba.observations.size());
-  if (record->global_ba_observations > options_.max_global_ba_observations) {
-    record->global_ba_skipped = true;
-    spdlog::warn(
-        "loop closing: global BA over {} keyframes and {} observations skipped (more than "
-        "loop_closing.max_global_ba_observations, {}); the pose graph's correction stands",
-        keyframes.size(), ba.observations.size(), options_.max_global_ba_observations);
-    return;
   }
   const PinholeIntrinsics intrinsics = keyframes.front()->frame.geometry->intrinsics;
   const uint64_t epoch = map_->correction_epoch();

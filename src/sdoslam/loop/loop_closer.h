@@ -87,7 +87,11 @@ struct LoopRecord {
   int fused_points = 0;
   int graph_keyframes = 0, graph_edges = 0;
   double correction_m = 0;  // how far the keyframe moved, metres
-  double ms = 0;
+  double ms = 0;            // the whole closure, global BA included
+  // Its stages: the geometric check of the candidates, moving the keyframe's neighbourhood
+  // and fusing the loop side's points into it, the pose graph (built and solved), and moving
+  // every point with its keyframe.
+  double verify_ms = 0, fuse_ms = 0, pose_graph_ms = 0, points_ms = 0;
   int global_ba_observations = 0;    // of the global BA, run or not
   double global_ba_ms = 0;           // 0: not run
   bool global_ba_skipped = false;    // more observations than max_global_ba_observations

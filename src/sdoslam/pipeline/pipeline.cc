@@ -504,17 +504,19 @@ RunSummary RunOnDataset(const RunOptions& options) {
   results.WriteText("mapping.csv", mapping_log);
   std::string loop_log =
       "frame_index,loop_frame_index,matches,inliers,projected_inliers,fused_points,"
-      "graph_keyframes,graph_edges,correction_m,ms,global_ba_observations,global_ba_ms,"
-      "global_ba\n";
+      "graph_keyframes,graph_edges,correction_m,ms,verify_ms,fuse_ms,pose_graph_ms,points_ms,"
+      "global_ba_observations,global_ba_ms,global_ba\n";
   for (const LoopRecord& l : summary.loops) {
     const char* global_ba = l.global_ba_skipped     ? "skipped"
                             : l.global_ba_discarded ? "discarded"
                             : l.global_ba_ms > 0    ? "run"
                                                     : "off";
-    loop_log += fmt::format("{},{},{},{},{},{},{},{},{:.4f},{:.2f},{},{:.2f},{}\n", l.frame_index,
-                            l.loop_frame_index, l.matches, l.inliers, l.projected_inliers,
-                            l.fused_points, l.graph_keyframes, l.graph_edges, l.correction_m, l.ms,
-                            l.global_ba_observations, l.global_ba_ms, global_ba);
+    loop_log += fmt::format(
+        "{},{},{},{},{},{},{},{},{:.4f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{},{:.2f},{}\n",
+        l.frame_index, l.loop_frame_index, l.matches, l.inliers, l.projected_inliers,
+        l.fused_points, l.graph_keyframes, l.graph_edges, l.correction_m, l.ms, l.verify_ms,
+        l.fuse_ms, l.pose_graph_ms, l.points_ms, l.global_ba_observations, l.global_ba_ms,
+        global_ba);
   }
   results.WriteText("loops.csv", loop_log);
   if (run.save_masks) results.WriteText("features.csv", feature_log);

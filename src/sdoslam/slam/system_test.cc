@@ -449,6 +449,14 @@ TEST_F(SlamLoopClosing, TheLongLoopIsClosedAtTheRevisitAndTheErrorAtLeastHalved)
   EXPECT_GT(closed.global_ba_observations, 1000);
   EXPECT_GT(closed.global_ba_ms, 0);
   EXPECT_FALSE(closed.global_ba_skipped);
+  // The closure's stages are timed, and they are parts of its whole time.
+  EXPECT_GT(closed.verify_ms, 0);
+  EXPECT_GT(closed.fuse_ms, 0);
+  EXPECT_GT(closed.pose_graph_ms, 0);
+  EXPECT_GT(closed.points_ms, 0);
+  EXPECT_LE(closed.verify_ms + closed.fuse_ms + closed.pose_graph_ms + closed.points_ms +
+                closed.global_ba_ms,
+            closed.ms);
   SlamOptions budget;
   budget.loop_closing.max_global_ba_observations = closed.global_ba_observations - 1;
   budget.loop_closing.essential_max_covisible = 1;
