@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <limits>
 
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/stopwatch.h"
@@ -22,6 +23,7 @@ void LoopClosingOptions::Check(const std::string& path) const {
     throw Error(path + "min_projected_inliers must be >= " + path + "min_inliers");
   if (essential_min_weight < 1) throw Error(path + "essential_min_weight must be >= 1");
   if (essential_max_covisible < 0) throw Error(path + "essential_max_covisible must be >= 0");
+  if (fuse_keyframes < 0) throw Error(path + "fuse_keyframes must be >= 0");
   ransac.Check(path + "ransac.");
   pose_graph.Check(path + "pose_graph.");
   global_ba.Check(path + "global_ba.");
@@ -30,9 +32,9 @@ void LoopClosingOptions::Check(const std::string& path) const {
 
 namespace {
 
-// The map points of the place a loop closes on: the keyframe's and its covisible neighbours',
-// each once, in the order met.
-std::vector<MapPoint*> LoopSidePoints(const KeyFrame* loop) {
+// The map points of the place a loop closes on: the keyframe's and its `neighbours` most
+// covisible keyframes', each once, in the order met.
+std::vector<MapPoint*> LoopSidePoints(const KeyFrame* loop, int neighbours) {
   std::vector<MapPoint*> points;
   std::set<uint64_t> seen;
   auto collect = [&](const KeyFrame* kf) {
@@ -41,8 +43,12 @@ std::vector<MapPoint*> LoopSidePoints(const KeyFrame* loop) {
     }
   };
   collect(loop);
+  int taken = 0;
   for (const KeyFrame* n : loop->best_covisible) {
-    if (!n->bad) collect(n);
+    if (taken >= neighbours) break;
+    if (n->bad) continue;
+    collect(n);
+    ++taken;
   }
   return points;
 }
@@ -270,7 +276,9 @@ bool LoopCloser::Verify(KeyFrame* keyframe, KeyFrame* candidate, Verified* verif
   verified->inliers = optimize(probe);
   if (verified->inliers < options_.min_inliers) return false;
 
-  const std::vector<MapPoint*> loop_points = LoopSidePoints(candidate);
+  // Every covisible keyframe's: one projection search, cheap next to fusing.
+  const std::vector<MapPoint*> loop_points =
+      LoopSidePoints(candidate, std::numeric_limits<int>::max());
   // A stamp space of its own (top bit set), apart from tracking's frame stamps.
   const uint64_t stamp = (uint64_t{1} << 63) | ++search_stamp_;
   for (MapPoint* p : probe.map_points) {
@@ -345,12 +353,14 @@ void LoopCloser::Correct(KeyFrame* keyframe, const Verified& verified, LoopRecor
       ++fused;
     }
   }
-  const std::vector<MapPoint*> loop_points = LoopSidePoints(loop);
+  const std::vector<MapPoint*> loop_points = LoopSidePoints(loop, options_.fuse_keyframes);
   std::map<uint64_t, std::set<uint64_t>> linked_before;
+  // `connected` is the keyframe, then its covisible ones, strongest first.
+  int fuse_targets = 1 + options_.fuse_keyframes;
   for (KeyFrame* kf : connected) {
     if (kf->bad) continue;
     for (const auto& [id, weight] : kf->covisibility) linked_before[kf->id].insert(id);
-    fused += Fuse(*map_, kf, loop_points);
+    if (fuse_targets-- > 0) fused += Fuse(*map_, kf, loop_points);
   }
   record->fused_points = fused;
   // 3. New covisibility links across the loop are its edges in the essential graph.

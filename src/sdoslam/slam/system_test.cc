@@ -477,6 +477,19 @@ TEST_F(SlamLoopClosing, TheLongLoopIsClosedAtTheRevisitAndTheErrorAtLeastHalved)
   EXPECT_EQ(skipped.loops[0].global_ba_ms, 0);
   EXPECT_EQ(skipped.trajectory.size(), frames);
   EXPECT_LE(Ate(skipped), 0.5 * Ate(without));
+  // With no neighbours to fuse over, the loop keyframe's own points are fused into the closing
+  // keyframe alone: fewer than over both neighbourhoods, and the loop still closes.
+  SlamOptions narrow;
+  narrow.loop_closing.fuse_keyframes = 0;
+  const RunResult alone =
+      RunSequence(*dir_ / "seq", synth::SyntheticCamera(), 0, {}, true, nullptr, narrow);
+  ASSERT_FALSE(alone.loops.empty());
+  std::cout << "points fused " << closed.fused_points << ", into the keyframe alone "
+            << alone.loops[0].fused_points << "; ATE " << Ate(alone) << '\n';
+  EXPECT_EQ(alone.loops[0].frame_index, closed.frame_index);
+  EXPECT_LT(alone.loops[0].fused_points, closed.fused_points);
+  EXPECT_GT(alone.loops[0].fused_points, 0);
+  EXPECT_LE(Ate(alone), 0.5 * Ate(without));
 }
 
 TEST(SlamOptionsTest, ConfigSectionsAreReadAndUnknownKeysRejected) {
@@ -683,6 +696,8 @@ TEST(SlamOptionsTest, CheckMessagesNameTheConfigPath) {
             "c.yaml: loop_closing.max_global_ba_observations must be >= 1");
   EXPECT_EQ(ErrorOf("loop_closing:\n  essential_max_covisible: -1\n"),
             "c.yaml: loop_closing.essential_max_covisible must be >= 0");
+  EXPECT_EQ(ErrorOf("loop_closing:\n  fuse_keyframes: -1\n"),
+            "c.yaml: loop_closing.fuse_keyframes must be >= 0");
   EXPECT_EQ(ErrorOf("tracking:\n  consistency:\n    static_motion:\n      hypotheses: 0\n"),
             "c.yaml: tracking.consistency.static_motion.hypotheses must be >= 1");
   EXPECT_EQ(ErrorOf("tracking:\n  consistency:\n    track_window: 4\n"),
