@@ -46,9 +46,10 @@ struct LoopClosingOptions {
   int essential_max_covisible = 10;
   // A closed loop fuses the loop side's points (the loop keyframe's and those of its strongest
   // this many covisible keyframes) into the closing keyframe and its strongest this many
-  // (ORB-SLAM2: every covisible keyframe on both sides). Where conventional mode keeps nearly
-  // every keyframe, a keyframe had hundreds of covisible ones and a closure spent 11.7 s
-  // fusing; sdo's and static scenes' maps keep fewer keyframes alive (13-35) than the cap.
+  // (ORB-SLAM2: every covisible keyframe on both sides), and reconnects only those. Where
+  // conventional mode keeps nearly every keyframe, a keyframe had hundreds of covisible ones
+  // and a closure spent 11.7 s fusing, then 51 s reconnecting; sdo's and static scenes' maps
+  // keep fewer keyframes alive (13-35) than the cap.
   int fuse_keyframes = 50;
   RigidRansacOptions ransac;
   PoseGraphOptions pose_graph;
