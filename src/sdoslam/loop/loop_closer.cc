@@ -320,20 +320,18 @@ void LoopCloser::Correct(KeyFrame* keyframe, const Verified& verified, LoopRecor
   }
   const Eigen::Isometry3d change = keyframe->pose().inverse() * verified.T_camera_world;
   std::map<uint64_t, uint64_t> corrected_by;  // point id -> keyframe whose move it followed
+  std::vector<MapPoint*> moved;
   for (KeyFrame* kf : connected) {
     const Eigen::Isometry3d T_new = kf->pose() * change;
     const Eigen::Isometry3d to_new = T_new.inverse() * kf->pose();  // old world -> new world
     for (MapPoint* p : kf->frame.map_points) {
       if (p == nullptr || p->bad || !corrected_by.emplace(p->id, kf->id).second) continue;
       p->position = to_new * p->position;
+      moved.push_back(p);
     }
     kf->frame.T_camera_world = T_new;
   }
-  for (KeyFrame* kf : connected) {
-    for (MapPoint* p : kf->frame.map_points) {
-      if (p != nullptr && !p->bad) p->UpdateNormalAndDepth();
-    }
-  }
+  for (MapPoint* p : moved) p->UpdateNormalAndDepth();
 
   // 2. The matched points become the loop side's, and the loop side's points are fused into
   // the neighbours: the map holds each place once.
