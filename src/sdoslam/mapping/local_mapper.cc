@@ -19,6 +19,7 @@ void LocalMapperOptions::Check(const std::string& path) const {
     throw Error(path + "min_found_ratio must be in [0, 1)");
   if (!(redundant_ratio > 0 && redundant_ratio <= 1))
     throw Error(path + "redundant_ratio must be in (0, 1]");
+  if (transient_observations < 0) throw Error(path + "transient_observations must be >= 0");
   if (local_keyframes < 1) throw Error(path + "local_keyframes must be >= 1");
   if (fixed_keyframes < 0) throw Error(path + "fixed_keyframes must be >= 0");
   if (max_ba_observations < 1) throw Error(path + "max_ba_observations must be >= 1");
@@ -33,6 +34,10 @@ LocalMapper::LocalMapper(Map* map, const LocalMapperOptions& options)
 }
 
 namespace {
+
+// Keyframes over which a new point must prove itself (ORB-SLAM2: found often enough, seen by
+// more than its own keyframe).
+constexpr uint64_t kProbationKeyFrames = 3;
 
 // A lock that is only taken when there is a mutex (threaded runs); the wait is added to
 // `*wait_ms`.
@@ -108,7 +113,7 @@ int LocalMapper::CullRecentPoints(KeyFrame* kf) {
     if (p->FoundRatio() < options_.min_found_ratio || (age >= 2 && p->observations.size() < 2)) {
       map_->SetBad(p);
       ++culled;
-    } else if (age < 3) {
+    } else if (age < kProbationKeyFrames) {
       keep.push_back(p);  // still on probation
     }
   }
@@ -401,6 +406,9 @@ int LocalMapper::CullKeyFrames(KeyFrame* kf) {
     for (size_t i = 0; i < candidate->frame.size(); ++i) {
       const MapPoint* p = candidate->frame.map_points[i];
       if (p == nullptr || p->bad) continue;
+      if (static_cast<int>(p->observations.size()) <= options_.transient_observations &&
+          p->first_keyframe_id + kProbationKeyFrames <= kf->id)
+        continue;  // transient: neither kept nor made redundant
       ++points;
       if (p->observations.size() <= 3) continue;
       const int level = candidate->frame.keypoints[i].octave;

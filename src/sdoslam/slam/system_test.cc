@@ -698,6 +698,8 @@ TEST(SlamOptionsTest, CheckMessagesNameTheConfigPath) {
             "c.yaml: loop_closing.essential_max_covisible must be >= 0");
   EXPECT_EQ(ErrorOf("loop_closing:\n  fuse_keyframes: -1\n"),
             "c.yaml: loop_closing.fuse_keyframes must be >= 0");
+  EXPECT_EQ(ErrorOf("mapping:\n  transient_observations: -1\n"),
+            "c.yaml: mapping.transient_observations must be >= 0");
   EXPECT_EQ(ErrorOf("tracking:\n  consistency:\n    static_motion:\n      hypotheses: 0\n"),
             "c.yaml: tracking.consistency.static_motion.hypotheses must be >= 1");
   EXPECT_EQ(ErrorOf("tracking:\n  consistency:\n    track_window: 4\n"),
