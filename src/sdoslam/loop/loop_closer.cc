@@ -34,21 +34,13 @@ namespace {
 
 // The map points of the place a loop closes on: the keyframe's and its `neighbours` most
 // covisible keyframes', each once, in the order met.
-std::vector<MapPoint*> LoopSidePoints(const KeyFrame* loop, int neighbours) {
+std::vector<MapPoint*> LoopSidePoints(KeyFrame* loop, int neighbours) {
   std::vector<MapPoint*> points;
   std::set<uint64_t> seen;
-  auto collect = [&](const KeyFrame* kf) {
+  for (const KeyFrame* kf : WithStrongestNeighbours(loop, neighbours)) {
     for (MapPoint* p : kf->frame.map_points) {
       if (p != nullptr && !p->bad && seen.insert(p->id).second) points.push_back(p);
     }
-  };
-  collect(loop);
-  int taken = 0;
-  for (const KeyFrame* n : loop->best_covisible) {
-    if (taken >= neighbours) break;
-    if (n->bad) continue;
-    collect(n);
-    ++taken;
   }
   return points;
 }
@@ -352,13 +344,9 @@ void LoopCloser::Correct(KeyFrame* keyframe, const Verified& verified, LoopRecor
     }
   }
   const std::vector<MapPoint*> loop_points = LoopSidePoints(loop, options_.fuse_keyframes);
-  // `connected` is the keyframe, then its covisible ones, strongest first: the first
-  // 1 + fuse_keyframes good ones take the loop side's points.
-  std::vector<KeyFrame*> fused_into;
-  for (KeyFrame* kf : connected) {
-    if (static_cast<int>(fused_into.size()) > options_.fuse_keyframes) break;
-    if (!kf->bad) fused_into.push_back(kf);
-  }
+  // The keyframe and its fuse_keyframes strongest neighbours take the loop side's points.
+  const std::vector<KeyFrame*> fused_into =
+      WithStrongestNeighbours(keyframe, options_.fuse_keyframes);
   std::map<uint64_t, std::set<uint64_t>> linked_before;
   for (KeyFrame* kf : fused_into) {
     for (const auto& [id, weight] : kf->covisibility) linked_before[kf->id].insert(id);

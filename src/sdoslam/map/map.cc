@@ -96,6 +96,15 @@ int KeyFrame::TrackedPoints(int min_observations) const {
   return n;
 }
 
+std::vector<KeyFrame*> WithStrongestNeighbours(KeyFrame* kf, int count) {
+  std::vector<KeyFrame*> out{kf};
+  for (KeyFrame* n : kf->best_covisible) {  // by weight, then id
+    if (static_cast<int>(out.size()) > count) break;
+    if (!n->bad && n != kf) out.push_back(n);
+  }
+  return out;
+}
+
 Eigen::Isometry3d ComposeWithReference(const KeyFrame* reference,
                                        const Eigen::Isometry3d& T_camera_reference) {
   Eigen::Isometry3d T = T_camera_reference;

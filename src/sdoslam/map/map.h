@@ -68,6 +68,10 @@ class KeyFrame {
   int TrackedPoints(int min_observations) const;
 };
 
+// `kf`, then at most `count` of its most covisible keyframes that are not culled, strongest
+// first: the neighbourhood that local mapping adjusts and a loop closure fuses over.
+std::vector<KeyFrame*> WithStrongestNeighbours(KeyFrame* kf, int count);
+
 // The world pose of a camera tracked relative to `reference`, following culled references to
 // their parents: T_camera_reference * T_reference_parent * ... * first good ancestor's pose.
 Eigen::Isometry3d ComposeWithReference(const KeyFrame* reference,

@@ -157,6 +157,27 @@ TEST_F(MapTest, UpdateConnectionsMakesTheMostCovisibleKeyFrameTheParent) {
   ExpectConsistent();
 }
 
+// The neighbourhood local mapping adjusts and loop closing fuses over: the keyframe first, then
+// its most covisible keyframes that are not culled, strongest first, at most `count`.
+TEST_F(MapTest, WithStrongestNeighboursTakesTheKeyFrameThenItsStrongestGoodLinks) {
+  const std::vector<KeyFrame*> k = KeyFrames(5);
+  Share(k[1], k[0], 0, 40);
+  map_.UpdateConnections(k[1]);
+  Share(k[2], k[1], 100, 60);
+  map_.UpdateConnections(k[2]);
+  Share(k[3], k[1], 200, 50);
+  map_.UpdateConnections(k[3]);
+  Share(k[4], k[1], 300, 30);
+  map_.UpdateConnections(k[4]);
+  map_.UpdateConnections(k[1]);
+  using List = std::vector<KeyFrame*>;
+  EXPECT_EQ(WithStrongestNeighbours(k[1], 2), (List{k[1], k[2], k[3]}));
+  EXPECT_EQ(WithStrongestNeighbours(k[1], 0), (List{k[1]}));
+  EXPECT_EQ(WithStrongestNeighbours(k[1], 100), (List{k[1], k[2], k[3], k[0], k[4]}));
+  ASSERT_TRUE(map_.SetBad(k[2]));
+  EXPECT_EQ(WithStrongestNeighbours(k[1], 2), (List{k[1], k[3], k[0]}));
+}
+
 TEST_F(MapTest, EdgesBelowFifteenSharedPointsAreKeptOnlyWhenThereIsNoOther) {
   const std::vector<KeyFrame*> k = KeyFrames(3);
   KeyFrame *k0 = k[0], *k1 = k[1], *k2 = k[2];

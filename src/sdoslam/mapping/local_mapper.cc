@@ -257,12 +257,7 @@ int LocalMapper::FuseWithNeighbours(KeyFrame* kf) {
 }
 
 std::vector<KeyFrame*> LocalMapper::LocalWindow(KeyFrame* kf) const {
-  std::vector<KeyFrame*> local{kf};
-  for (KeyFrame* n : kf->best_covisible) {  // by weight, then id
-    if (static_cast<int>(local.size()) > options_.local_keyframes) break;
-    if (!n->bad && n != kf) local.push_back(n);
-  }
-  return local;
+  return WithStrongestNeighbours(kf, options_.local_keyframes);
 }
 
 void LocalMapper::LocalBundleAdjustment(KeyFrame* kf, MappingResult* result,
