@@ -305,11 +305,10 @@ void LoopCloser::Correct(KeyFrame* keyframe, const Verified& verified, LoopRecor
     if (!kf->bad) before[id] = kf->pose();
   }
   // 1. The keyframe and its neighbours move rigidly to the loop, and their points with them.
-  std::vector<KeyFrame*> connected{keyframe};
-  std::set<uint64_t> connected_ids{keyframe->id};
-  for (KeyFrame* n : keyframe->best_covisible) {
-    if (!n->bad && connected_ids.insert(n->id).second) connected.push_back(n);
-  }
+  const std::vector<KeyFrame*> connected =
+      WithStrongestNeighbours(keyframe, std::numeric_limits<int>::max());
+  std::set<uint64_t> connected_ids;
+  for (const KeyFrame* kf : connected) connected_ids.insert(kf->id);
   const Eigen::Isometry3d change = keyframe->pose().inverse() * verified.T_camera_world;
   std::map<uint64_t, uint64_t> corrected_by;  // point id -> keyframe whose move it followed
   std::vector<MapPoint*> moved;
