@@ -33,19 +33,54 @@ std::filesystem::path Resolve(const std::filesystem::path& p, const std::filesys
   return p.is_relative() ? base / p : p;
 }
 
-// Boxes follow the mean flow inside them on frames without detection.
-void ShiftByFlow(const cv::Mat& flow, cv::Size image, std::vector<Detection>* detections) {
-  if (flow.empty()) return;
+// Boxes follow their object on frames without detection: each moves by the median flow of its
+// nearer pixels (nearer than the box's median depth; all of them without depth), the object in
+// it rather than the wall around it. A box holds much background (the mean flow of a block's
+// exact box lagged a third behind it: DIS blurs motion across outlines). `flow` spans `span`
+// frames (flow.frame_gap once that many have passed) and the boxes are one frame old, so they
+// move by a `span`-th of it: moved by all of it, a box ran ahead of a walking person by twice
+// its frame-to-frame motion.
+void ShiftByFlow(const cv::Mat& flow, int span, const cv::Mat& depth, cv::Size image,
+                 std::vector<Detection>* detections) {
+  if (flow.empty() || span < 1) return;
   const double s = static_cast<double>(flow.cols) / image.width;
+  auto median = [](std::vector<float>& v) {
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
   for (Detection& d : *detections) {
     const cv::Rect r = cv::Rect(static_cast<int>(d.box.x * s), static_cast<int>(d.box.y * s),
                                 std::max(1, static_cast<int>(d.box.width * s)),
                                 std::max(1, static_cast<int>(d.box.height * s))) &
                        cv::Rect(0, 0, flow.cols, flow.rows);
     if (r.area() <= 0) continue;
-    const cv::Scalar mean = cv::mean(flow(r));
-    d.box.x += static_cast<float>(mean[0] / s);
-    d.box.y += static_cast<float>(mean[1] / s);
+    std::vector<float> z;  // depth at each of the box's flow pixels, 0 = none
+    z.reserve(static_cast<size_t>(r.area()));
+    for (int y = r.y; y < r.y + r.height; ++y) {
+      for (int x = r.x; x < r.x + r.width; ++x) {
+        const int u = std::min(image.width - 1, static_cast<int>(x / s));
+        const int v = std::min(image.height - 1, static_cast<int>(y / s));
+        z.push_back(depth.empty() ? 0.0f : depth.at<float>(v, u));
+      }
+    }
+    std::vector<float> valid;
+    for (float d : z) {
+      if (d > 0) valid.push_back(d);
+    }
+    const float near_limit = valid.empty() ? 0.0f : median(valid);
+    std::vector<float> dx, dy;
+    size_t i = 0;
+    for (int y = r.y; y < r.y + r.height; ++y) {
+      const cv::Vec2f* row = flow.ptr<cv::Vec2f>(y);
+      for (int x = r.x; x < r.x + r.width; ++x, ++i) {
+        if (near_limit > 0 && !(z[i] > 0 && z[i] <= near_limit)) continue;
+        dx.push_back(row[x][0]);
+        dy.push_back(row[x][1]);
+      }
+    }
+    if (dx.empty()) continue;
+    d.box.x += static_cast<float>(median(dx) / (s * span));
+    d.box.y += static_cast<float>(median(dy) / (s * span));
   }
 }
 
@@ -169,6 +204,7 @@ SdoResult FrontEnd::Process(const FrontEndFrame& frame, FrontEndTiming* timing) 
   FrontEndTiming t;
   auto start = std::chrono::steady_clock::now();
   cv::Mat flow, boundaries;
+  const int flow_span = static_cast<int>(previous_bgr_.size());  // frames the flow spans
   if (!previous_bgr_.empty()) {
     flow = flow_->Compute(previous_bgr_.front(), frame.bgr);
     boundaries = ComputeMotionBoundaries(flow, options_.boundaries).mask;
@@ -179,7 +215,7 @@ SdoResult FrontEnd::Process(const FrontEndFrame& frame, FrontEndTiming* timing) 
   if (frames_ % static_cast<size_t>(options_.detect_every) == 0) {
     last_detections_ = detector_->Detect(frame);
   } else {
-    ShiftByFlow(flow, image_size_, &last_detections_);
+    ShiftByFlow(flow, flow_span, frame.depth, image_size_, &last_detections_);
   }
   t.detect_ms = MsSince(start);
 

@@ -1,8 +1,11 @@
 #include "sdoslam/dynamic/front_end.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
+#include <fstream>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "sdoslam/core/error.h"
@@ -98,6 +101,56 @@ std::string FrontEndErrorOf(const std::string& yaml) {
 
 // Every setting changed, written and read back through the keys: each comes back as written.
 // (ReadFields, not ReadFrontEndOptions: the changed values are not meant to pass the checks.)
+// detector.every: on the frames between detections, a box follows its object by the flow of one
+// frame, though the flow spans flow.frame_gap frames. A textured block moves 6 px a frame over a
+// textured wall; the detections file boxes it exactly on every frame, and the detector runs on
+// frames 0, 3, 6 and 9 only. Moved by the whole span's flow, the box of frame 4 ran 12 px ahead.
+TEST(FrontEndDetectEvery, CarriedBoxesFollowTheirObjectFrameByFrame) {
+  testing::TempDir dir;
+  const cv::Size size(640, 480);
+  cv::Mat wall(size, CV_8UC3), block(160, 100, CV_8UC3);
+  cv::RNG rng(5);
+  // Smooth texture (12 px blobs): the front end computes flow at 320 px wide.
+  cv::Mat coarse(size.height / 12, size.width / 12, CV_8UC3);
+  rng.fill(coarse, cv::RNG::UNIFORM, 0, 255);
+  cv::resize(coarse, wall, size, 0, 0, cv::INTER_CUBIC);
+  cv::Mat coarse_block(block.rows / 12, block.cols / 12, CV_8UC3);
+  rng.fill(coarse_block, cv::RNG::UNIFORM, 0, 255);
+  cv::resize(coarse_block, block, block.size(), 0, 0, cv::INTER_CUBIC);
+  auto box_of = [](int k) { return cv::Rect(120 + 6 * k, 150, 100, 160); };
+  const int frames = 10;
+  std::vector<std::filesystem::path> rgb_paths;
+  nlohmann::json detections = {{"frames", nlohmann::json::array()}};
+  for (int k = 0; k < frames; ++k) {
+    rgb_paths.push_back(dir / fmt::format("{}.png", k));
+    const cv::Rect b = box_of(k);
+    detections["frames"].push_back(
+        {{"rgb", rgb_paths.back().filename().string()},
+         {"detections", {{{"class", "person"}, {"box", {b.x, b.y, b.width, b.height}}}}}});
+  }
+  std::ofstream(dir / "detections.json") << detections.dump();
+  FrontEndOptions o;
+  o.detector = "file";
+  o.detections_file = dir / "detections.json";
+  o.detect_every = 3;
+  FrontEnd front_end(o, dir.path(), size, rgb_paths,
+                     cv::Matx33d(525, 0, 320, 0, 525, 240, 0, 0, 1));
+  for (int k = 0; k < frames; ++k) {
+    FrontEndFrame f;
+    f.index = static_cast<size_t>(k);
+    f.rgb_path = rgb_paths[static_cast<size_t>(k)];
+    f.bgr = wall.clone();
+    block.copyTo(f.bgr(box_of(k)));
+    f.depth = cv::Mat(size, CV_32F, cv::Scalar(3.0f));
+    f.depth(box_of(k)).setTo(1.5f);
+    const SdoResult r = front_end.Process(f);
+    ASSERT_EQ(r.detections.size(), 1u) << "frame " << k;
+    const cv::Rect2f& got = r.detections[0].box;
+    EXPECT_NEAR(got.x, box_of(k).x, 2.0) << "frame " << k;
+    EXPECT_NEAR(got.y, box_of(k).y, 2.0) << "frame " << k;
+  }
+}
+
 TEST(FrontEndOptionsTest, EverySettingRoundTripsThroughTheWrittenConfig) {
   FrontEndOptions changed;
   testing::ChangeEveryField(&changed);
