@@ -12,6 +12,7 @@
 #include "sdoslam/optim/optimizer.h"
 #include "sdoslam/synth/renderer.h"
 #include "sdoslam/synth/scenarios.h"
+#include "sdoslam/testing/single_feature_keyframe.h"
 
 namespace sdoslam {
 namespace {
@@ -122,18 +123,14 @@ void BM_UpdateDescriptor(benchmark::State& state) {
   const Camera camera(o);
   const OrbExtractor extractor(OrbOptions{});
   const auto geometry = std::make_shared<FrameGeometry>(camera, extractor, 40.0, 3.0);
-  const cv::Mat blank(480, 640, CV_8UC3, cv::Scalar::all(0));
-  const cv::Mat depth(480, 640, CV_32F, cv::Scalar(2.0f));
   cv::RNG rng(1);
   Map map;
   MapPoint* p = nullptr;
   for (int64_t v = 0; v < state.range(0); ++v) {
-    Frame frame(static_cast<size_t>(v), static_cast<double>(v), blank, depth, geometry, extractor);
-    frame.keypoints = {cv::KeyPoint(320, 240, 31)};
-    frame.descriptors = cv::Mat(1, 32, CV_8U);
-    rng.fill(frame.descriptors, cv::RNG::UNIFORM, 0, 256);
-    frame.map_points = {nullptr};
-    KeyFrame* kf = map.AddKeyFrame(std::move(frame));
+    cv::Mat descriptor(1, 32, CV_8U);
+    rng.fill(descriptor, cv::RNG::UNIFORM, 0, 256);
+    KeyFrame* kf = testing::AddSingleFeatureKeyFrame(map, static_cast<size_t>(v), descriptor,
+                                                     geometry, extractor);
     if (p == nullptr) p = map.AddMapPoint(Eigen::Vector3d(0, 0, 2), kf);
     map.AddObservation(p, kf, 0);
   }

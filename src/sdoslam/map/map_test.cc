@@ -7,6 +7,8 @@
 
 #include <opencv2/core.hpp>
 
+#include "sdoslam/testing/single_feature_keyframe.h"
+
 namespace sdoslam {
 namespace {
 
@@ -402,16 +404,13 @@ TEST_F(MapTest, ThePointDescriptorOfManyViewsIsTheirMajorityAppearance) {
     for (int f = 0; f < flips; ++f) v.at<uint8_t>(0, rng.uniform(0, 32)) ^= 1 << rng.uniform(0, 8);
     return v;
   };
-  // Keyframes of a blank image (no features of their own): each is given one feature.
-  const cv::Mat blank(480, 640, CV_8UC3, cv::Scalar::all(0));
-  const cv::Mat depth(480, 640, CV_32F, cv::Scalar(2.0f));
   MapPoint* p = nullptr;
   for (int v = 0; v < kViews; ++v) {
-    Frame frame(static_cast<size_t>(v), v, blank, depth, geometry_, extractor_);
-    frame.keypoints = {cv::KeyPoint(320, 240, 31)};
-    frame.descriptors = noisy(v < 40 ? oldest : v >= kViews - 40 ? newest : main);
-    frame.map_points = {nullptr};
-    KeyFrame* kf = map_.AddKeyFrame(std::move(frame));
+    KeyFrame* kf = testing::AddSingleFeatureKeyFrame(map_, static_cast<size_t>(v),
+                                                     noisy(v < 40             ? oldest
+                                                           : v >= kViews - 40 ? newest
+                                                                              : main),
+                                                     geometry_, extractor_);
     if (p == nullptr) p = map_.AddMapPoint(Eigen::Vector3d(0, 0, 2), kf);
     map_.AddObservation(p, kf, 0);
   }
