@@ -202,10 +202,14 @@ void Map::UpdateConnections(KeyFrame* kf) {
       by_id[other_id] = obs.first;
     }
   }
-  // Old edges of this keyframe go away from the other side too.
+  // Old edges of this keyframe go away from the other side too (and from its best list, below,
+  // where no new edge takes their place).
+  std::vector<KeyFrame*> old_neighbours;
   for (const auto& [other_id, weight] : kf->covisibility) {
     const auto it = keyframes_.find(other_id);
-    if (it != keyframes_.end()) it->second->covisibility.erase(kf->id);
+    if (it == keyframes_.end()) continue;
+    it->second->covisibility.erase(kf->id);
+    old_neighbours.push_back(it->second.get());
   }
   kf->covisibility.clear();
   constexpr int kMinShared = 15;
@@ -230,6 +234,9 @@ void Map::UpdateConnections(KeyFrame* kf) {
     KeyFrame* other = by_id[other_id];
     other->covisibility[kf->id] = count;
     sort_best(other);
+  }
+  for (KeyFrame* other : old_neighbours) {
+    if (kf->covisibility.count(other->id) == 0) sort_best(other);
   }
   sort_best(kf);
   if (kf->parent == nullptr && kf->id != 0 && best_count > 0) SetParent(kf, by_id[best_id]);

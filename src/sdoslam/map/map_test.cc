@@ -115,6 +115,10 @@ class MapTest : public ::testing::Test {
         EXPECT_EQ(other->covisibility.at(id), weight);
       }
       EXPECT_EQ(kf->best_covisible.size(), kf->covisibility.size());
+      for (const KeyFrame* other : kf->best_covisible) {
+        EXPECT_EQ(kf->covisibility.count(other->id), 1u)
+            << "keyframe " << id << " lists " << other->id << " among its best, not linked";
+      }
     }
     for (const auto& [id, p] : map_.points()) {
       if (p->bad) {
@@ -192,6 +196,25 @@ TEST_F(MapTest, EdgesBelowFifteenSharedPointsAreKeptOnlyWhenThereIsNoOther) {
   Share(k0, k3, 200, 5);
   map_.UpdateConnections(k3);
   EXPECT_EQ(k3->covisibility.at(k0->id), 5);  // the only one: kept so k3 is connected
+  ExpectConsistent();
+}
+
+// An edge that falls below fifteen shared points goes from both sides: from the other
+// keyframe's covisibility and from its ordered list of best neighbours, which local mapping and
+// loop closing walk.
+TEST_F(MapTest, AnEdgeThatWeakensBelowFifteenLeavesBothSidesAndTheirBestLists) {
+  const std::vector<KeyFrame*> k = KeyFrames(3);
+  KeyFrame *k0 = k[0], *k1 = k[1], *k2 = k[2];
+  const std::vector<MapPoint*> shared = Share(k0, k1, 0, 30);
+  Share(k1, k2, 100, 40);
+  map_.UpdateConnections(k1);
+  ASSERT_EQ(k0->best_covisible, std::vector<KeyFrame*>{k1});
+  for (size_t i = 0; i < 20; ++i) map_.EraseObservation(shared[i], k1);
+  map_.UpdateConnections(k1);
+  EXPECT_EQ(k1->covisibility.count(k0->id), 0u);
+  EXPECT_EQ(k0->covisibility.count(k1->id), 0u);
+  EXPECT_TRUE(k0->best_covisible.empty());
+  EXPECT_EQ(k1->best_covisible, std::vector<KeyFrame*>{k2});
   ExpectConsistent();
 }
 
