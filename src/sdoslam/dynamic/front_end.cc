@@ -64,8 +64,8 @@ void ShiftByFlow(const cv::Mat& flow, int span, const cv::Mat& depth, cv::Size i
       }
     }
     std::vector<float> valid;
-    for (float d : z) {
-      if (d > 0) valid.push_back(d);
+    for (float metres : z) {
+      if (metres > 0) valid.push_back(metres);
     }
     const float near_limit = valid.empty() ? 0.0f : median(valid);
     std::vector<float> dx, dy;
