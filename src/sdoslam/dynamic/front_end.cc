@@ -201,6 +201,14 @@ SdoResult FrontEnd::Process(const FrontEndFrame& frame, FrontEndTiming* timing) 
     throw Error(fmt::format("frame {}: image is {}x{}, the front end expects {}x{}", frame.index,
                             frame.bgr.cols, frame.bgr.rows, image_size_.width, image_size_.height));
   }
+  if (!frame.depth.empty() &&
+      (frame.depth.size() != image_size_ || frame.depth.type() != CV_32FC1)) {
+    throw Error(fmt::format(
+        "frame {}: depth is {}x{} ({} channel(s), depth code {}), the front end expects {}x{} "
+        "32-bit float",
+        frame.index, frame.depth.cols, frame.depth.rows, frame.depth.channels(),
+        frame.depth.depth(), image_size_.width, image_size_.height));
+  }
   FrontEndTiming t;
   auto start = std::chrono::steady_clock::now();
   cv::Mat flow, boundaries;

@@ -99,8 +99,6 @@ std::string FrontEndErrorOf(const std::string& yaml) {
   return testing::ReadErrorOf(yaml, ReadFrontEndOptions);
 }
 
-// Every setting changed, written and read back through the keys: each comes back as written.
-// (ReadFields, not ReadFrontEndOptions: the changed values are not meant to pass the checks.)
 // detector.every: on the frames between detections, a box follows its object by the flow of one
 // frame, though the flow spans flow.frame_gap frames. A textured block moves 6 px a frame over a
 // textured wall; the detections file boxes it exactly on every frame, and the detector runs on
@@ -149,8 +147,22 @@ TEST(FrontEndDetectEvery, CarriedBoxesFollowTheirObjectFrameByFrame) {
     EXPECT_NEAR(got.x, box_of(k).x, 2.0) << "frame " << k;
     EXPECT_NEAR(got.y, box_of(k).y, 2.0) << "frame " << k;
   }
+  // A depth image that does not fit the colour image is refused, naming the frame.
+  FrontEndFrame bad;
+  bad.index = 10;
+  bad.bgr = wall.clone();
+  bad.depth = cv::Mat(240, 320, CV_32F, cv::Scalar(3.0f));
+  try {
+    front_end.Process(bad);
+    ADD_FAILURE() << "a 320x240 depth image was taken";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("frame 10: depth is 320x240"), std::string::npos)
+        << e.what();
+  }
 }
 
+// Every setting changed, written and read back through the keys: each comes back as written.
+// (ReadFields, not ReadFrontEndOptions: the changed values are not meant to pass the checks.)
 TEST(FrontEndOptionsTest, EverySettingRoundTripsThroughTheWrittenConfig) {
   FrontEndOptions changed;
   testing::ChangeEveryField(&changed);
