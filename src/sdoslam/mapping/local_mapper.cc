@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <numbers>
 #include <set>
 
 #include "sdoslam/core/error.h"
@@ -20,6 +22,10 @@ void LocalMapperOptions::Check(const std::string& path) const {
   if (!(redundant_ratio > 0 && redundant_ratio <= 1))
     throw Error(path + "redundant_ratio must be in (0, 1]");
   if (transient_observations < 0) throw Error(path + "transient_observations must be >= 0");
+  if (!(crowded_distance >= 0)) throw Error(path + "crowded_distance must be >= 0");
+  if (!(crowded_angle_deg > 0 && crowded_angle_deg <= 180))
+    throw Error(path + "crowded_angle_deg must be in (0, 180]");
+  if (crowded_keyframes < 2) throw Error(path + "crowded_keyframes must be >= 2");
   if (local_keyframes < 1) throw Error(path + "local_keyframes must be >= 1");
   if (fixed_keyframes < 0) throw Error(path + "fixed_keyframes must be >= 0");
   if (max_ba_observations < 1) throw Error(path + "max_ba_observations must be >= 1");
@@ -77,7 +83,7 @@ MappingResult LocalMapper::Process(KeyFrame* kf, std::mutex* map_mutex) {
   result.ba_ms = MsSince(start);
   auto lock = LockIf(map_mutex, &result.lock_wait_ms);
   start = std::chrono::steady_clock::now();
-  result.culled_keyframes = CullKeyFrames(kf);
+  result.culled_keyframes = CullKeyFrames(kf) + CullCrowdedKeyFrames(kf);
   result.cull_ms = MsSince(start);
   return result;
 }
@@ -393,31 +399,69 @@ void LocalMapper::LocalBundleAdjustment(KeyFrame* kf, MappingResult* result,
 // Counting every map point keeps 20 alive there at the same ATE. And a keyframe left without
 // any map point (all culled) is culled too: it can no longer help tracking, and the ratio would
 // never cull it.
+LocalMapper::Redundancy LocalMapper::RedundantPoints(const KeyFrame* candidate,
+                                                     const KeyFrame* kf) const {
+  Redundancy r;
+  for (size_t i = 0; i < candidate->frame.size(); ++i) {
+    const MapPoint* p = candidate->frame.map_points[i];
+    if (p == nullptr || p->bad) continue;
+    if (static_cast<int>(p->observations.size()) <= options_.transient_observations &&
+        p->first_keyframe_id + kProbationKeyFrames <= kf->id)
+      continue;  // transient: neither kept nor made redundant
+    ++r.points;
+    if (p->observations.size() <= 3) continue;
+    const int level = candidate->frame.keypoints[i].octave;
+    int others = 0;
+    for (const auto& [other_id, obs] : p->observations) {
+      if (other_id == candidate->id) continue;
+      if (obs.first->frame.keypoints[static_cast<size_t>(obs.second)].octave <= level + 1 &&
+          ++others >= 3)
+        break;
+    }
+    r.redundant += others >= 3;
+  }
+  return r;
+}
+
 int LocalMapper::CullKeyFrames(KeyFrame* kf) {
   int culled = 0;
   for (KeyFrame* candidate : LocalWindow(kf)) {
     if (candidate->id == 0 || candidate->bad || candidate == kf) continue;
-    int points = 0, redundant = 0;
-    for (size_t i = 0; i < candidate->frame.size(); ++i) {
-      const MapPoint* p = candidate->frame.map_points[i];
-      if (p == nullptr || p->bad) continue;
-      if (static_cast<int>(p->observations.size()) <= options_.transient_observations &&
-          p->first_keyframe_id + kProbationKeyFrames <= kf->id)
-        continue;  // transient: neither kept nor made redundant
-      ++points;
-      if (p->observations.size() <= 3) continue;
-      const int level = candidate->frame.keypoints[i].octave;
-      int others = 0;
-      for (const auto& [other_id, obs] : p->observations) {
-        if (other_id == candidate->id) continue;
-        if (obs.first->frame.keypoints[static_cast<size_t>(obs.second)].octave <= level + 1 &&
-            ++others >= 3)
-          break;
-      }
-      redundant += others >= 3;
-    }
-    if ((points == 0 || redundant > options_.redundant_ratio * points) && map_->SetBad(candidate))
+    const Redundancy r = RedundantPoints(candidate, kf);
+    if ((r.points == 0 || r.redundant > options_.redundant_ratio * r.points) &&
+        map_->SetBad(candidate))
       ++culled;
+  }
+  return culled;
+}
+
+// The crowd is found by a pass over the keyframes' poses, not the map's points: a few hundred
+// distance checks, microseconds, where the rule keeps the keyframes bounded.
+int LocalMapper::CullCrowdedKeyFrames(KeyFrame* kf) {
+  if (options_.crowded_distance <= 0 || kf->bad) return 0;
+  const Eigen::Vector3d centre = kf->CameraCentre();
+  const Eigen::Vector3d axis = kf->pose().rotation().row(2).transpose();
+  const double min_cos = std::cos(options_.crowded_angle_deg * std::numbers::pi / 180);
+  std::vector<KeyFrame*> crowded;
+  for (const auto& [id, other] : map_->keyframes()) {
+    if (id == 0 || id >= kf->id || other->bad) continue;
+    if ((other->CameraCentre() - centre).norm() > options_.crowded_distance) continue;
+    if (other->pose().rotation().row(2).dot(axis.transpose()) < min_cos) continue;
+    crowded.push_back(other.get());
+  }
+  // The crowd keeps its most useful members: those with the smallest share of redundant points.
+  std::vector<std::pair<double, KeyFrame*>> by_share;
+  for (KeyFrame* other : crowded) {
+    const Redundancy r = RedundantPoints(other, kf);
+    by_share.emplace_back(r.points == 0 ? 1.0 : static_cast<double>(r.redundant) / r.points, other);
+  }
+  std::sort(by_share.begin(), by_share.end(), [](const auto& a, const auto& b) {
+    return a.first != b.first ? a.first > b.first : a.second->id < b.second->id;
+  });
+  int culled = 0;
+  for (const auto& [share, other] : by_share) {
+    if (static_cast<int>(crowded.size()) - culled < options_.crowded_keyframes) break;
+    culled += map_->SetBad(other);
   }
   return culled;
 }

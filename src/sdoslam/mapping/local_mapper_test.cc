@@ -2,10 +2,13 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
+
 #include "sdoslam/matching/matcher.h"
 #include "sdoslam/synth/renderer.h"
 #include "sdoslam/synth/scenarios.h"
 #include "sdoslam/synth/sensor.h"
+#include "sdoslam/testing/single_feature_keyframe.h"
 
 namespace sdoslam {
 namespace {
@@ -119,6 +122,85 @@ TEST(LocalMapper, TheLocalAdjustmentStaysWithinItsObservationBudget) {
   // The neighbours the budget leaves out of the window are held fixed, not forgotten.
   EXPECT_GE(bounded.fixed_keyframes, 1);
   EXPECT_GT(bounded.ba.iterations, 0);
+}
+
+// Keyframes that see the place from the same spot, none of them redundant by its points: each
+// sees one point that the keyframe before made and makes one of its own (so each has a parent,
+// and each point two observers). The crowd rule keeps at most `crowded_keyframes` of them, the
+// newest (equal shares), and spares the first keyframe, a distant one and one that looks
+// another way.
+TEST(LocalMapper, ACrowdedViewpointKeepsAtMostItsQuota) {
+  const Camera camera(synth::SyntheticCamera());
+  const OrbExtractor extractor(OrbOptions{});
+  auto geometry = std::make_shared<FrameGeometry>(camera, extractor, 40.0, 3.0);
+  for (const double distance : {0.0, 0.3}) {
+    SCOPED_TRACE(distance);
+    LocalMapperOptions options;
+    options.transient_observations = 0;  // two observers count (ORB-SLAM2's rule)
+    options.crowded_distance = distance;
+    options.crowded_angle_deg = 15;
+    options.crowded_keyframes = 3;
+    // Two observations per keyframe cannot hold a pose: the adjustment is left out.
+    options.bundle_adjustment.iterations = options.bundle_adjustment.refine_iterations = 0;
+    Map map;
+    LocalMapper mapper(&map, options);
+    cv::RNG rng(7);  // random descriptors lie far apart, so nothing is fused
+    std::vector<KeyFrame*> keyframes;
+    MapPoint* previous_point = nullptr;
+    for (size_t i = 0; i < 10; ++i) {
+      // 1 cm steps along x, except keyframe 4 (1 m off) and keyframe 5 (turned by 25 degrees).
+      Eigen::Isometry3d T_world_camera = Eigen::Isometry3d::Identity();
+      T_world_camera.translation() =
+          Eigen::Vector3d(i == 4 ? 1.0 : 0.01 * static_cast<double>(i), 0, 0);
+      if (i == 5)
+        T_world_camera.linear() =
+            Eigen::AngleAxisd(-25 * M_PI / 180, Eigen::Vector3d::UnitY()).matrix();
+      cv::Mat descriptors(2, 32, CV_8U);
+      rng.fill(descriptors, cv::RNG::UNIFORM, 0, 256);
+      KeyFrame* kf =
+          testing::AddSingleFeatureKeyFrame(map, i, descriptors.row(0), geometry, extractor);
+      Frame& frame = kf->frame;
+      frame.T_camera_world = T_world_camera.inverse();
+      // Feature 0 sees the previous keyframe's point (where it projects), feature 1 makes a new
+      // point 2 m ahead of the first keyframe.
+      const Eigen::Vector3d new_point(0.01 * static_cast<double>(i), 0, 2);
+      const Eigen::Vector3d seen = previous_point ? previous_point->position : new_point;
+      const std::array<Eigen::Vector3d, 2> targets = {seen, new_point};
+      for (size_t f = 0; f < targets.size(); ++f) {
+        const Eigen::Vector3d in_camera = frame.T_camera_world * targets[f];
+        const Eigen::Vector2d pixel = camera.Project(in_camera);
+        ASSERT_TRUE(in_camera.z() > 0 && pixel.x() > 0 && pixel.x() < 640) << i;
+        if (f == 1) {  // the helper made one feature
+          frame.keypoints.push_back({});
+          frame.undistorted.push_back({});
+          frame.depth.push_back(0);
+          frame.right_u.push_back(-1);
+          frame.map_points.push_back(nullptr);
+          frame.outlier.push_back(false);
+          frame.label.push_back(0);
+          frame.colors.push_back({});
+        }
+        frame.keypoints[f] =
+            cv::KeyPoint(static_cast<float>(pixel.x()), static_cast<float>(pixel.y()), 31);
+        frame.undistorted[f] = frame.keypoints[f].pt;
+        frame.depth[f] = static_cast<float>(in_camera.z());
+      }
+      frame.descriptors = descriptors;
+      frame.map_points[0] = previous_point;  // InsertKeyFrame adds the observation
+      previous_point = map.AddMapPoint(new_point, kf);
+      map.AddObservation(previous_point, kf, 1);
+      mapper.Process(kf);
+      keyframes.push_back(kf);
+    }
+    std::vector<size_t> alive;
+    for (size_t i = 0; i < keyframes.size(); ++i)
+      if (!keyframes[i]->bad) alive.push_back(i);
+    if (distance == 0) {
+      EXPECT_EQ(alive.size(), keyframes.size());  // the rule is off, and nothing is redundant
+    } else {
+      EXPECT_EQ(alive, (std::vector<size_t>{0, 4, 5, 7, 8, 9}));
+    }
+  }
 }
 
 }  // namespace

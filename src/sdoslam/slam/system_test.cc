@@ -700,6 +700,10 @@ TEST(SlamOptionsTest, CheckMessagesNameTheConfigPath) {
             "c.yaml: loop_closing.fuse_keyframes must be >= 0");
   EXPECT_EQ(ErrorOf("mapping:\n  transient_observations: -1\n"),
             "c.yaml: mapping.transient_observations must be >= 0");
+  EXPECT_EQ(ErrorOf("mapping:\n  crowded_keyframes: 1\n"),
+            "c.yaml: mapping.crowded_keyframes must be >= 2");
+  EXPECT_EQ(ErrorOf("mapping:\n  crowded_angle_deg: 0\n"),
+            "c.yaml: mapping.crowded_angle_deg must be in (0, 180]");
   EXPECT_EQ(ErrorOf("tracking:\n  consistency:\n    static_motion:\n      hypotheses: 0\n"),
             "c.yaml: tracking.consistency.static_motion.hypotheses must be >= 1");
   EXPECT_EQ(ErrorOf("tracking:\n  consistency:\n    track_window: 4\n"),
