@@ -392,13 +392,8 @@ void LocalMapper::LocalBundleAdjustment(KeyFrame* kf, MappingResult* result,
   }
 }
 
-// ORB-SLAM2's rule with two changes. It counts only the points whose depth is "close" (below
-// 40 baselines, about 3 m): in a room seen from its middle most points are farther, the ratio
-// then rests on a few dozen points, and a camera that never leaves the room kept adding
-// keyframes without bound (walking_xyz: 124 alive after 1,500 frames, mapping cost 4x).
-// Counting every map point keeps 20 alive there at the same ATE. And a keyframe left without
-// any map point (all culled) is culled too: it can no longer help tracking, and the ratio would
-// never cull it.
+// Points that count for the redundancy of `candidate` when `kf` is processed, and how many of
+// them three other keyframes see.
 LocalMapper::Redundancy LocalMapper::RedundantPoints(const KeyFrame* candidate,
                                                      const KeyFrame* kf) const {
   Redundancy r;
@@ -423,6 +418,13 @@ LocalMapper::Redundancy LocalMapper::RedundantPoints(const KeyFrame* candidate,
   return r;
 }
 
+// ORB-SLAM2's rule with two changes. It counts only the points whose depth is "close" (below
+// 40 baselines, about 3 m): in a room seen from its middle most points are farther, the ratio
+// then rests on a few dozen points, and a camera that never leaves the room kept adding
+// keyframes without bound (walking_xyz: 124 alive after 1,500 frames, mapping cost 4x).
+// Counting every map point keeps 20 alive there at the same ATE. And a keyframe left without
+// any map point (all culled) is culled too: it can no longer help tracking, and the ratio would
+// never cull it.
 int LocalMapper::CullKeyFrames(KeyFrame* kf) {
   int culled = 0;
   for (KeyFrame* candidate : LocalWindow(kf)) {
