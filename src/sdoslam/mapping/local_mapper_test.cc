@@ -157,36 +157,23 @@ TEST(LocalMapper, ACrowdedViewpointKeepsAtMostItsQuota) {
             Eigen::AngleAxisd(-25 * M_PI / 180, Eigen::Vector3d::UnitY()).matrix();
       cv::Mat descriptors(2, 32, CV_8U);
       rng.fill(descriptors, cv::RNG::UNIFORM, 0, 256);
-      KeyFrame* kf =
-          testing::AddSingleFeatureKeyFrame(map, i, descriptors.row(0), geometry, extractor);
-      Frame& frame = kf->frame;
-      frame.T_camera_world = T_world_camera.inverse();
       // Feature 0 sees the previous keyframe's point (where it projects), feature 1 makes a new
       // point 2 m ahead of the first keyframe.
+      const Eigen::Isometry3d T_camera_world = T_world_camera.inverse();
       const Eigen::Vector3d new_point(0.01 * static_cast<double>(i), 0, 2);
       const Eigen::Vector3d seen = previous_point ? previous_point->position : new_point;
-      const std::array<Eigen::Vector3d, 2> targets = {seen, new_point};
-      for (size_t f = 0; f < targets.size(); ++f) {
-        const Eigen::Vector3d in_camera = frame.T_camera_world * targets[f];
+      std::vector<cv::Point2f> pixels;
+      std::vector<float> depths;
+      for (const Eigen::Vector3d& world : std::array<Eigen::Vector3d, 2>{seen, new_point}) {
+        const Eigen::Vector3d in_camera = T_camera_world * world;
         const Eigen::Vector2d pixel = camera.Project(in_camera);
         ASSERT_TRUE(in_camera.z() > 0 && pixel.x() > 0 && pixel.x() < 640) << i;
-        if (f == 1) {  // the helper made one feature
-          frame.keypoints.push_back({});
-          frame.undistorted.push_back({});
-          frame.depth.push_back(0);
-          frame.right_u.push_back(-1);
-          frame.map_points.push_back(nullptr);
-          frame.outlier.push_back(false);
-          frame.label.push_back(0);
-          frame.colors.push_back({});
-        }
-        frame.keypoints[f] =
-            cv::KeyPoint(static_cast<float>(pixel.x()), static_cast<float>(pixel.y()), 31);
-        frame.undistorted[f] = frame.keypoints[f].pt;
-        frame.depth[f] = static_cast<float>(in_camera.z());
+        pixels.emplace_back(static_cast<float>(pixel.x()), static_cast<float>(pixel.y()));
+        depths.push_back(static_cast<float>(in_camera.z()));
       }
-      frame.descriptors = descriptors;
-      frame.map_points[0] = previous_point;  // InsertKeyFrame adds the observation
+      KeyFrame* kf = testing::AddKeyFrameWithFeatures(map, i, pixels, depths, descriptors, geometry,
+                                                      extractor, T_camera_world);
+      kf->frame.map_points[0] = previous_point;  // InsertKeyFrame adds the observation
       previous_point = map.AddMapPoint(new_point, kf);
       map.AddObservation(previous_point, kf, 1);
       mapper.Process(kf);
