@@ -26,10 +26,12 @@ class DisFlow : public FlowEstimator {
  public:
   explicit DisFlow(const FlowOptions& options)
       : options_(options), dis_(cv::DISOpticalFlow::create(options.dis_preset)) {}
-  cv::Mat Compute(const cv::Mat& previous, const cv::Mat& current) override {
+  cv::Mat Prepare(const cv::Mat& bgr) const override {
+    return GrayAtWidth(bgr, options_.work_width);
+  }
+  cv::Mat ComputePrepared(const cv::Mat& previous, const cv::Mat& current) override {
     cv::Mat flow;
-    dis_->calc(GrayAtWidth(previous, options_.work_width),
-               GrayAtWidth(current, options_.work_width), flow);
+    dis_->calc(previous, current, flow);
     return flow;
   }
 
@@ -41,11 +43,12 @@ class DisFlow : public FlowEstimator {
 class FarnebackFlow : public FlowEstimator {
  public:
   explicit FarnebackFlow(const FlowOptions& options) : options_(options) {}
-  cv::Mat Compute(const cv::Mat& previous, const cv::Mat& current) override {
+  cv::Mat Prepare(const cv::Mat& bgr) const override {
+    return GrayAtWidth(bgr, options_.work_width);
+  }
+  cv::Mat ComputePrepared(const cv::Mat& previous, const cv::Mat& current) override {
     cv::Mat flow;
-    cv::calcOpticalFlowFarneback(GrayAtWidth(previous, options_.work_width),
-                                 GrayAtWidth(current, options_.work_width), flow, 0.5, 3, 15, 3, 5,
-                                 1.2, 0);
+    cv::calcOpticalFlowFarneback(previous, current, flow, 0.5, 3, 15, 3, 5, 1.2, 0);
     return flow;
   }
 
@@ -61,7 +64,7 @@ class OnnxFlow : public FlowEstimator {
     const std::vector<OnnxInput> inputs = ReadOnnxInputs(model);
     if (names_.empty() && inputs.size() == 2) names_ = {inputs[0].name, inputs[1].name};
     size_ = ModelInputSize(inputs, {options.work_width, options.work_width * 3 / 4});
-    const cv::Mat blank(size_, CV_8UC3, cv::Scalar::all(127));
+    const cv::Mat blank = Prepare(cv::Mat(size_, CV_8UC3, cv::Scalar::all(127)));
     cv::Mat out;
     try {
       out = Run(blank, blank);
@@ -76,7 +79,11 @@ class OnnxFlow : public FlowEstimator {
     }
   }
 
-  cv::Mat Compute(const cv::Mat& previous, const cv::Mat& current) override {
+  // The network's input blob: RGB scaled to [0, 1] at its input size.
+  cv::Mat Prepare(const cv::Mat& bgr) const override {
+    return cv::dnn::blobFromImage(bgr, 1.0 / 255.0, size_, cv::Scalar(), true);
+  }
+  cv::Mat ComputePrepared(const cv::Mat& previous, const cv::Mat& current) override {
     const cv::Mat out = Run(previous, current);
     const int h = out.size[2], w = out.size[3];
     float* data = const_cast<float*>(out.ptr<float>());
@@ -87,9 +94,8 @@ class OnnxFlow : public FlowEstimator {
   }
 
  private:
-  cv::Mat Run(const cv::Mat& previous, const cv::Mat& current) {
-    const cv::Mat a = cv::dnn::blobFromImage(previous, 1.0 / 255.0, size_, cv::Scalar(), true);
-    const cv::Mat b = cv::dnn::blobFromImage(current, 1.0 / 255.0, size_, cv::Scalar(), true);
+  // a, b: prepared blobs of the previous and the current image.
+  cv::Mat Run(const cv::Mat& a, const cv::Mat& b) {
     if (names_.empty()) {
       const int shape[] = {1, 6, size_.height, size_.width};
       cv::Mat stacked(4, shape, CV_32F);

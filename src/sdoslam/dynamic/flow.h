@@ -12,9 +12,16 @@ namespace sdoslam {
 class FlowEstimator {
  public:
   virtual ~FlowEstimator() = default;
-  // CV_32FC2 at (work) resolution: displacement in pixels of that resolution. The result may be
-  // smaller than the images; its aspect is the images'.
-  virtual cv::Mat Compute(const cv::Mat& previous_bgr, const cv::Mat& current_bgr) = 0;
+  // A BGR image in the form ComputePrepared takes it: grey at the work width (DIS, Farnebäck),
+  // the network's input blob (ONNX). A front end prepares each frame once and keeps it for the
+  // pairs the frame is part of (with flow.frame_gap = 3, three).
+  virtual cv::Mat Prepare(const cv::Mat& bgr) const = 0;
+  // Flow between two prepared images: CV_32FC2 at (work) resolution, displacement in pixels of
+  // that resolution. The result may be smaller than the images; its aspect is the images'.
+  virtual cv::Mat ComputePrepared(const cv::Mat& previous, const cv::Mat& current) = 0;
+  cv::Mat Compute(const cv::Mat& previous_bgr, const cv::Mat& current_bgr) {
+    return ComputePrepared(Prepare(previous_bgr), Prepare(current_bgr));
+  }
 };
 
 struct FlowOptions {

@@ -212,9 +212,10 @@ SdoResult FrontEnd::Process(const FrontEndFrame& frame, FrontEndTiming* timing) 
   FrontEndTiming t;
   auto start = std::chrono::steady_clock::now();
   cv::Mat flow, boundaries;
-  const int flow_span = static_cast<int>(previous_bgr_.size());  // frames the flow spans
-  if (!previous_bgr_.empty()) {
-    flow = flow_->Compute(previous_bgr_.front(), frame.bgr);
+  const int flow_span = static_cast<int>(previous_flow_inputs_.size());  // frames the flow spans
+  cv::Mat flow_input = flow_->Prepare(frame.bgr);
+  if (!previous_flow_inputs_.empty()) {
+    flow = flow_->ComputePrepared(previous_flow_inputs_.front(), flow_input);
     boundaries = ComputeMotionBoundaries(flow, options_.boundaries).mask;
   }
   t.flow_ms = MsSince(start);
@@ -235,9 +236,9 @@ SdoResult FrontEnd::Process(const FrontEndFrame& frame, FrontEndTiming* timing) 
   SdoResult result =
       classifier_.Classify(segments, last_detections_, boundaries, flow, frame.depth, image_size_);
   t.classify_ms = MsSince(start);
-  previous_bgr_.push_back(frame.bgr.clone());
-  if (static_cast<int>(previous_bgr_.size()) > options_.flow_options.frame_gap)
-    previous_bgr_.pop_front();
+  previous_flow_inputs_.push_back(std::move(flow_input));
+  if (static_cast<int>(previous_flow_inputs_.size()) > options_.flow_options.frame_gap)
+    previous_flow_inputs_.pop_front();
   ++frames_;
   if (timing != nullptr) *timing = t;
   return result;

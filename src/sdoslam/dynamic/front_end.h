@@ -120,7 +120,9 @@ class FrontEnd {
   std::unique_ptr<Detector> detector_;
   std::unique_ptr<FlowEstimator> flow_;
   SdoClassifier classifier_;
-  std::deque<cv::Mat> previous_bgr_;  // the last flow_options.frame_gap images, oldest first
+  // The last flow_options.frame_gap images as the flow takes them (FlowEstimator::Prepare),
+  // oldest first: each frame is converted once, not once for every pair it is part of.
+  std::deque<cv::Mat> previous_flow_inputs_;
   std::vector<Detection> last_detections_;
   size_t frames_ = 0;
 };
