@@ -13,8 +13,9 @@ class FlowEstimator {
  public:
   virtual ~FlowEstimator() = default;
   // A BGR image in the form ComputePrepared takes it: grey at the work width (DIS, Farnebäck),
-  // the network's input blob (ONNX). A front end prepares each frame once and keeps it for the
-  // pairs the frame is part of (with flow.frame_gap = 3, three).
+  // the network's input blob (ONNX), in memory of its own: a front end prepares each frame once
+  // and keeps it, after the frame's image is gone, for the pairs the frame is part of (with
+  // flow.frame_gap = 3, three).
   virtual cv::Mat Prepare(const cv::Mat& bgr) const = 0;
   // Flow between two prepared images: CV_32FC2 at (work) resolution, displacement in pixels of
   // that resolution. The result may be smaller than the images; its aspect is the images'.
