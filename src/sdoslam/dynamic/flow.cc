@@ -64,7 +64,7 @@ class OnnxFlow : public FlowEstimator {
     const std::vector<OnnxInput> inputs = ReadOnnxInputs(model);
     if (names_.empty() && inputs.size() == 2) names_ = {inputs[0].name, inputs[1].name};
     size_ = ModelInputSize(inputs, {options.work_width, options.work_width * 3 / 4});
-    const cv::Mat blank = Prepare(cv::Mat(size_, CV_8UC3, cv::Scalar::all(127)));
+    const cv::Mat blank = Blob(cv::Mat(size_, CV_8UC3, cv::Scalar::all(127)));
     cv::Mat out;
     try {
       out = Run(blank, blank);
@@ -79,10 +79,7 @@ class OnnxFlow : public FlowEstimator {
     }
   }
 
-  // The network's input blob: RGB scaled to [0, 1] at its input size.
-  cv::Mat Prepare(const cv::Mat& bgr) const override {
-    return cv::dnn::blobFromImage(bgr, 1.0 / 255.0, size_, cv::Scalar(), true);
-  }
+  cv::Mat Prepare(const cv::Mat& bgr) const override { return Blob(bgr); }
   cv::Mat ComputePrepared(const cv::Mat& previous, const cv::Mat& current) override {
     const cv::Mat out = Run(previous, current);
     const int h = out.size[2], w = out.size[3];
@@ -94,6 +91,11 @@ class OnnxFlow : public FlowEstimator {
   }
 
  private:
+  // The network's input blob: RGB scaled to [0, 1] at its input size. (Not Prepare itself: the
+  // constructor calls it, where a virtual call would not dispatch.)
+  cv::Mat Blob(const cv::Mat& bgr) const {
+    return cv::dnn::blobFromImage(bgr, 1.0 / 255.0, size_, cv::Scalar(), true);
+  }
   // a, b: prepared blobs of the previous and the current image.
   cv::Mat Run(const cv::Mat& a, const cv::Mat& b) {
     if (names_.empty()) {
