@@ -323,7 +323,7 @@ RunSummary RunOnDataset(const RunOptions& options) {
     }
   }
   std::optional<MaskEvaluator> mask_evaluator;
-  if (run.mode != RunMode::kConventional &&
+  if (run.evaluate_masks && run.mode != RunMode::kConventional &&
       std::filesystem::is_directory(run.dataset / "dynamic") &&
       std::filesystem::is_directory(run.dataset / "instance")) {
     mask_evaluator.emplace(run.dataset);

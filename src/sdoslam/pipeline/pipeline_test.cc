@@ -961,6 +961,31 @@ TEST(PipelineStages, AnInterruptedRunThatPreparesAheadStopsCleanly) {
   EXPECT_GE(s.trajectory.size(), 13u);
 }
 
+// Mask scoring is evaluation, not SLAM: turned off (as bench does), a run on a synthetic sequence
+// gives no mask scores and the same trajectory.
+TEST(PipelineStages, MaskScoringCanBeLeftOutWithoutChangingTheRun) {
+  testing::TempDir dir;
+  const auto sequence = WriteShortWalk(dir, 20);
+  auto run_with = [&](bool evaluate) {
+    RunOptions run = SyntheticRun(sequence, dir / fmt::format("out_{}", evaluate), RunMode::kSdo);
+    run.slam.sequential = true;
+    run.evaluate_masks = evaluate;
+    return RunOnDataset(run);
+  };
+  const RunSummary scored = run_with(true), unscored = run_with(false);
+  ASSERT_TRUE(scored.masks.has_value());
+  EXPECT_EQ(scored.masks->frames, scored.frames);
+  EXPECT_GT(scored.masks->pixels.true_positive + scored.masks->pixels.false_negative, 0u);
+  EXPECT_FALSE(unscored.masks.has_value());
+  ASSERT_EQ(unscored.trajectory.size(), scored.trajectory.size());
+  ASSERT_GE(scored.trajectory.size(), 15u);
+  for (size_t i = 0; i < scored.trajectory.size(); ++i) {
+    ASSERT_TRUE(unscored.trajectory[i].T_world_camera.matrix() ==
+                scored.trajectory[i].T_world_camera.matrix())
+        << "frame " << i;
+  }
+}
+
 // A library user's own segmentation: features under the caller's mask are never tracked, in
 // conventional mode too, and inputs of the wrong size fail naming the frame.
 TEST(PipelineStages, ACallersMaskTakesItsFeaturesOut) {
