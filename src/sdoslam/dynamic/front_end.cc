@@ -216,7 +216,7 @@ SdoResult FrontEnd::Process(const FrontEndFrame& frame, FrontEndTiming* timing) 
   cv::Mat flow_input = flow_->Prepare(frame.bgr);
   if (!previous_flow_inputs_.empty()) {
     flow = flow_->ComputePrepared(previous_flow_inputs_.front(), flow_input);
-    boundaries = ComputeMotionBoundaries(flow, options_.boundaries).mask;
+    boundaries = MotionBoundaryMask(flow, options_.boundaries);
   }
   t.flow_ms = MsSince(start);
 

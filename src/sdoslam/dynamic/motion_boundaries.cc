@@ -15,8 +15,13 @@ void MotionBoundaryOptions::Check(const std::string& path) const {
   if (!(min_flow_for_angle >= 0)) throw Error(path + "min_flow_for_angle must be >= 0");
 }
 
-MotionBoundaries ComputeMotionBoundaries(const cv::Mat& flow,
-                                         const MotionBoundaryOptions& options) {
+namespace {
+
+// mask_only: the largest angle is only computed where it can decide the mask (see
+// MotionBoundaryMask); elsewhere it counts as 0, so orientation_term and probability there are
+// not the full function's.
+MotionBoundaries Compute(const cv::Mat& flow, const MotionBoundaryOptions& options,
+                         bool mask_only) {
   options.Check();
   CV_Assert(flow.type() == CV_32FC2);
   cv::Mat uv[2];
@@ -44,13 +49,18 @@ MotionBoundaries ComputeMotionBoundaries(const cv::Mat& flow,
   cv::magnitude(uv[0], uv[1], length);
   cv::Mat max_angle = cv::Mat::zeros(flow.size(), CV_32F);
   const float min_flow = static_cast<float>(options.min_flow_for_angle);
+  // The bounds as cv::compare applies them to a float image below (the scalar converted to float).
+  const float strong = static_cast<float>(options.strong);
+  const float threshold = static_cast<float>(options.threshold);
   constexpr float kTwoPi = static_cast<float>(2 * M_PI);
   for (int y = 0; y < rows; ++y) {
     const float* theta = direction.ptr<float>(y);
     const float* norm = length.ptr<float>(y);
+    const float* magnitude_term = out.magnitude_term.ptr<float>(y);
     float* out_row = max_angle.ptr<float>(y);
     for (int x = 0; x < cols; ++x) {
       if (norm[x] < min_flow) continue;
+      if (mask_only && !(magnitude_term[x] > threshold && !(magnitude_term[x] > strong))) continue;
       float largest = 0;
       for (int dy = -1; dy <= 1; ++dy) {
         const int yy = y + dy;
@@ -75,6 +85,17 @@ MotionBoundaries ComputeMotionBoundaries(const cv::Mat& flow,
   out.magnitude_term.copyTo(out.probability, out.magnitude_term > options.strong);
   out.mask = out.probability > options.threshold;
   return out;
+}
+
+}  // namespace
+
+MotionBoundaries ComputeMotionBoundaries(const cv::Mat& flow,
+                                         const MotionBoundaryOptions& options) {
+  return Compute(flow, options, /*mask_only=*/false);
+}
+
+cv::Mat MotionBoundaryMask(const cv::Mat& flow, const MotionBoundaryOptions& options) {
+  return Compute(flow, options, /*mask_only=*/true).mask;
 }
 
 }  // namespace sdoslam

@@ -95,5 +95,50 @@ TEST(MotionBoundaries, DisFlowOnRenderedBoxesFindsTheMovingOutlines) {
   EXPECT_GT(in_band, 5.0 * elsewhere) << "in band " << in_band << ", elsewhere " << elsewhere;
 }
 
+// The front end's mask-only path skips the angle where M_I alone decides: on DIS flow of moving
+// boxes and on noisy random flow, under several settings (strong above and below threshold), it
+// gives the full computation's mask pixel for pixel, and the angle did decide pixels there.
+TEST(MotionBoundaries, TheMaskAloneIsTheFullComputationsMask) {
+  const Camera camera(synth::SyntheticCamera());
+  const synth::Scenario scenario = synth::MakeScenario("boxes_translational", 10.0);
+  cv::Mat gray[2];
+  for (int k = 0; k < 2; ++k) {
+    const double t = 2.0 + k / 10.0;
+    const synth::RenderedView view =
+        synth::Render(scenario.scene, t, synth::CameraPoseAt(scenario.motion, t, 10.0), camera);
+    cv::Mat bgr;
+    view.colour.convertTo(bgr, CV_8UC3, 255.0);
+    cv::cvtColor(bgr, gray[k], cv::COLOR_BGR2GRAY);
+  }
+  cv::Mat dis_flow;
+  cv::DISOpticalFlow::create(cv::DISOpticalFlow::PRESET_MEDIUM)->calc(gray[0], gray[1], dis_flow);
+  cv::Mat random_flow(97, 131, CV_32FC2);
+  cv::RNG rng(7);
+  rng.fill(random_flow, cv::RNG::NORMAL, cv::Scalar(1.0, -0.5), cv::Scalar(1.5, 1.5));
+  cv::GaussianBlur(random_flow, random_flow, cv::Size(5, 5), 1.0);
+
+  int decided_by_angle = 0;
+  for (const cv::Mat* flow : {&dis_flow, &random_flow}) {
+    for (const auto& [threshold, strong] : {std::pair{0.5, 0.8}, {0.3, 0.9}, {0.7, 0.6}}) {
+      MotionBoundaryOptions o;
+      o.threshold = threshold;
+      o.strong = strong;
+      const MotionBoundaries full = ComputeMotionBoundaries(*flow, o);
+      const cv::Mat fast = MotionBoundaryMask(*flow, o);
+      ASSERT_EQ(fast.size(), full.mask.size());
+      ASSERT_EQ(fast.type(), full.mask.type());
+      EXPECT_EQ(cv::countNonZero(fast != full.mask), 0)
+          << "threshold " << threshold << ", strong " << strong;
+      // Pixels whose M_I lies in (threshold, strong]: the angle said yes for some, no for others.
+      const cv::Mat undecided = (full.magnitude_term > threshold) & (full.magnitude_term <= strong);
+      decided_by_angle += cv::countNonZero(undecided & full.mask);
+      if (threshold < strong) {
+        EXPECT_GT(cv::countNonZero(undecided & ~full.mask), 0);
+      }
+    }
+  }
+  EXPECT_GT(decided_by_angle, 0);
+}
+
 }  // namespace
 }  // namespace sdoslam
