@@ -43,7 +43,7 @@ MotionBoundaries ComputeMotionBoundaries(const cv::Mat& flow,
 // ComputeMotionBoundaries(flow, options).mask, the same pixels, at less cost: the angle between
 // neighbouring flow vectors, the costly part, is only looked at where M_I alone does not decide
 // (M_I in (threshold, strong]). Elsewhere it cannot: M = M_I above strong, and M = M_I·M_O ≤ M_I
-// with M_O < 1 below.
+// with M_O ≤ 1 below.
 cv::Mat MotionBoundaryMask(const cv::Mat& flow, const MotionBoundaryOptions& options = {});
 
 }  // namespace sdoslam
