@@ -66,22 +66,29 @@ TEST(MotionBoundaries, FollowThePapersCombinationRule) {
 namespace sdoslam {
 namespace {
 
-TEST(MotionBoundaries, DisFlowOnRenderedBoxesFindsTheMovingOutlines) {
+// DIS flow (medium preset) of the rendered moving boxes from t = 2 s to 2 s + dt; `instance`:
+// the later view's object ids.
+cv::Mat DisFlowOfRenderedBoxes(double dt, cv::Mat* instance = nullptr) {
   const Camera camera(synth::SyntheticCamera());
   const synth::Scenario scenario = synth::MakeScenario("boxes_translational", 10.0);
-  cv::Mat gray[2], instance;
+  cv::Mat gray[2];
   for (int k = 0; k < 2; ++k) {
-    const double t = 2.0 + k / 30.0;
+    const double t = 2.0 + k * dt;
     const synth::RenderedView view =
         synth::Render(scenario.scene, t, synth::CameraPoseAt(scenario.motion, t, 10.0), camera);
     cv::Mat bgr;
     view.colour.convertTo(bgr, CV_8UC3, 255.0);
     cv::cvtColor(bgr, gray[k], cv::COLOR_BGR2GRAY);
-    instance = view.instance;
+    if (instance != nullptr) *instance = view.instance;
   }
   cv::Mat flow;
   cv::DISOpticalFlow::create(cv::DISOpticalFlow::PRESET_MEDIUM)->calc(gray[0], gray[1], flow);
-  const MotionBoundaries b = ComputeMotionBoundaries(flow);
+  return flow;
+}
+
+TEST(MotionBoundaries, DisFlowOnRenderedBoxesFindsTheMovingOutlines) {
+  cv::Mat instance;
+  const MotionBoundaries b = ComputeMotionBoundaries(DisFlowOfRenderedBoxes(1 / 30.0, &instance));
   // Band of ±4 px around the outlines of the moving objects (every object here moves).
   cv::Mat moving = instance > 0, band;
   cv::Mat outline;
@@ -99,19 +106,7 @@ TEST(MotionBoundaries, DisFlowOnRenderedBoxesFindsTheMovingOutlines) {
 // boxes and on noisy random flow, under several settings (strong above and below threshold), it
 // gives the full computation's mask pixel for pixel, and the angle did decide pixels there.
 TEST(MotionBoundaries, TheMaskAloneIsTheFullComputationsMask) {
-  const Camera camera(synth::SyntheticCamera());
-  const synth::Scenario scenario = synth::MakeScenario("boxes_translational", 10.0);
-  cv::Mat gray[2];
-  for (int k = 0; k < 2; ++k) {
-    const double t = 2.0 + k / 10.0;
-    const synth::RenderedView view =
-        synth::Render(scenario.scene, t, synth::CameraPoseAt(scenario.motion, t, 10.0), camera);
-    cv::Mat bgr;
-    view.colour.convertTo(bgr, CV_8UC3, 255.0);
-    cv::cvtColor(bgr, gray[k], cv::COLOR_BGR2GRAY);
-  }
-  cv::Mat dis_flow;
-  cv::DISOpticalFlow::create(cv::DISOpticalFlow::PRESET_MEDIUM)->calc(gray[0], gray[1], dis_flow);
+  const cv::Mat dis_flow = DisFlowOfRenderedBoxes(0.1);
   cv::Mat random_flow(97, 131, CV_32FC2);
   cv::RNG rng(7);
   rng.fill(random_flow, cv::RNG::NORMAL, cv::Scalar(1.0, -0.5), cv::Scalar(1.5, 1.5));
