@@ -106,7 +106,7 @@ TEST(MotionBoundaries, DisFlowOnRenderedBoxesFindsTheMovingOutlines) {
 // boxes and on noisy random flow, under several settings (strong above and below threshold), it
 // gives the full computation's mask pixel for pixel, and the angle did decide pixels there.
 TEST(MotionBoundaries, TheMaskAloneIsTheFullComputationsMask) {
-  const cv::Mat dis_flow = DisFlowOfRenderedBoxes(0.1);
+  cv::Mat dis_flow = DisFlowOfRenderedBoxes(0.1);
   cv::Mat random_flow(97, 131, CV_32FC2);
   cv::RNG rng(7);
   rng.fill(random_flow, cv::RNG::NORMAL, cv::Scalar(1.0, -0.5), cv::Scalar(1.5, 1.5));
