@@ -4,19 +4,13 @@
 
 #include <fstream>
 
-#include "sdoslam/core/error.h"
 #include "sdoslam/testing/test_util.h"
 
 namespace sdoslam {
 namespace {
 
-std::string ErrorOf(const std::filesystem::path& path) {
-  try {
-    ReadPly(path);
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "(no error)";
+std::string PlyErrorOf(const std::filesystem::path& path) {
+  return testing::MessageOf([&] { ReadPly(path); });
 }
 
 TEST(PointCloud, BinaryRoundTripKeepsPositionsAndColours) {
@@ -69,24 +63,26 @@ TEST(PointCloud, ReadsAsciiWithOtherPropertiesInAnyOrder) {
 
 TEST(PointCloud, MalformedFilesNameTheFileAndTheProblem) {
   testing::TempDir dir;
-  EXPECT_NE(ErrorOf(dir.path() / "absent.ply").find("absent.ply: cannot open"), std::string::npos);
+  EXPECT_NE(PlyErrorOf(dir.path() / "absent.ply").find("absent.ply: cannot open"),
+            std::string::npos);
 
   const auto not_ply = dir.path() / "not.ply";
   testing::WriteText(not_ply, "solid cube\n");
-  EXPECT_NE(ErrorOf(not_ply).find("not.ply:1: not a PLY file"), std::string::npos)
-      << ErrorOf(not_ply);
+  EXPECT_NE(PlyErrorOf(not_ply).find("not.ply:1: not a PLY file"), std::string::npos)
+      << PlyErrorOf(not_ply);
 
   const auto no_colour = dir.path() / "no_colour.ply";
   testing::WriteText(no_colour,
                      "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
                      "property float z\nend_header\n1 2 3\n");
-  EXPECT_NE(ErrorOf(no_colour).find("no property red"), std::string::npos) << ErrorOf(no_colour);
+  EXPECT_NE(PlyErrorOf(no_colour).find("no property red"), std::string::npos)
+      << PlyErrorOf(no_colour);
 
   const auto big_endian = dir.path() / "big.ply";
   testing::WriteText(big_endian,
                      "ply\nformat binary_big_endian 1.0\nelement vertex 0\nend_header\n");
-  EXPECT_NE(ErrorOf(big_endian).find("big.ply:2: format binary_big_endian"), std::string::npos)
-      << ErrorOf(big_endian);
+  EXPECT_NE(PlyErrorOf(big_endian).find("big.ply:2: format binary_big_endian"), std::string::npos)
+      << PlyErrorOf(big_endian);
 
   // A binary file cut short: the header promises 2 vertices, 1 and a half are there.
   const auto truncated = dir.path() / "truncated.ply";
@@ -95,12 +91,12 @@ TEST(PointCloud, MalformedFilesNameTheFileAndTheProblem) {
     WritePly(out, std::vector<ColoredPoint>(2));
   }
   std::filesystem::resize_file(truncated, std::filesystem::file_size(truncated) - 8);
-  EXPECT_NE(ErrorOf(truncated).find("truncated: vertex 1 of 2"), std::string::npos)
-      << ErrorOf(truncated);
+  EXPECT_NE(PlyErrorOf(truncated).find("truncated: vertex 1 of 2"), std::string::npos)
+      << PlyErrorOf(truncated);
 
   const auto no_end = dir.path() / "no_end.ply";
   testing::WriteText(no_end, "ply\nformat ascii 1.0\nelement vertex 1\n");
-  EXPECT_NE(ErrorOf(no_end).find("no end_header"), std::string::npos) << ErrorOf(no_end);
+  EXPECT_NE(PlyErrorOf(no_end).find("no end_header"), std::string::npos) << PlyErrorOf(no_end);
 }
 
 }  // namespace

@@ -5,7 +5,7 @@
 namespace sdoslam {
 namespace {
 
-const PinholeIntrinsics kK{535.4, 539.2, 320.1, 247.6, 40.0};
+const PinholeIntrinsics kIntrinsics{535.4, 539.2, 320.1, 247.6, 40.0};
 
 Eigen::Isometry3d SomePose() {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
@@ -62,23 +62,25 @@ void ExpectAnalyticMatchesNumeric(const ceres::CostFunction& cost) {
 }
 
 TEST(Residuals, ReprojectionJacobiansMatchNumericDifferences) {
-  ExpectAnalyticMatchesNumeric<2>(ReprojectionError({300.0, 200.0}, 1.0 / 1.2, kK));
+  ExpectAnalyticMatchesNumeric<2>(ReprojectionError({300.0, 200.0}, 1.0 / 1.2, kIntrinsics));
 }
 
 TEST(Residuals, StereoReprojectionJacobiansMatchNumericDifferences) {
-  ExpectAnalyticMatchesNumeric<3>(StereoReprojectionError({300.0, 200.0, 290.0}, 1.0, kK));
+  ExpectAnalyticMatchesNumeric<3>(StereoReprojectionError({300.0, 200.0, 290.0}, 1.0, kIntrinsics));
 }
 
 TEST(Residuals, ZeroAtTheTrueProjectionIncludingTheVirtualRightImage) {
   const Eigen::Isometry3d T = SomePose();
   const Eigen::Vector3d X(0.4, -0.3, 2.5);
   const Eigen::Vector3d p = T * X;
-  const double u = kK.fx * p.x() / p.z() + kK.cx, v = kK.fy * p.y() / p.z() + kK.cy;
+  const double u = kIntrinsics.fx * p.x() / p.z() + kIntrinsics.cx,
+               v = kIntrinsics.fy * p.y() / p.z() + kIntrinsics.cy;
   double pose[7];
   PoseToParameters(T, pose);
   const double* parameters[2] = {pose, X.data()};
   double r[3];
-  StereoReprojectionError({u, v, u - kK.bf / p.z()}, 1.0, kK).Evaluate(parameters, r, nullptr);
+  StereoReprojectionError({u, v, u - kIntrinsics.bf / p.z()}, 1.0, kIntrinsics)
+      .Evaluate(parameters, r, nullptr);
   EXPECT_NEAR(r[0], 0, 1e-9);
   EXPECT_NEAR(r[1], 0, 1e-9);
   EXPECT_NEAR(r[2], 0, 1e-9);

@@ -6,7 +6,7 @@
 #include <random>
 #include <string>
 
-#include "sdoslam/core/error.h"
+#include "sdoslam/testing/test_util.h"
 
 namespace sdoslam {
 namespace {
@@ -132,30 +132,23 @@ TEST(RigidRansac, IsDeterministicForASeed) {
   EXPECT_LT((r3.T_b_a.translation() - r1.T_b_a.translation()).norm(), 0.01);
 }
 
-void ExpectError(const std::function<void()>& f, const std::string& part) {
-  try {
-    f();
-    ADD_FAILURE() << "no Error thrown, expected one mentioning '" << part << "'";
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
-  }
-}
-
 TEST(RigidRansac, RejectsBadInput) {
   const std::vector<Eigen::Vector3d> three(3, Eigen::Vector3d(0, 0, 1)), two(2);
-  ExpectError([&] { EstimateRigidTransformRansac(three, two); }, "3 points in A but 2 in B");
+  testing::ExpectErrorMentioning([&] { EstimateRigidTransformRansac(three, two); },
+                                 "3 points in A but 2 in B");
   RigidRansacOptions options;
   options.confidence = 1.0;
-  ExpectError([&] { options.Check(); }, "confidence");
+  testing::ExpectErrorMentioning([&] { options.Check(); }, "confidence");
   options = {};
   options.min_inliers = 2;
-  ExpectError([&] { EstimateRigidTransformRansac(three, three, options); }, "min_inliers");
+  testing::ExpectErrorMentioning([&] { EstimateRigidTransformRansac(three, three, options); },
+                                 "min_inliers");
   options = {};
   options.inlier_base = 0;
-  ExpectError([&] { options.Check(); }, "inlier_base");
+  testing::ExpectErrorMentioning([&] { options.Check(); }, "inlier_base");
   options = {};
   options.max_iterations = 0;
-  ExpectError([&] { options.Check(); }, "max_iterations");
+  testing::ExpectErrorMentioning([&] { options.Check(); }, "max_iterations");
   EXPECT_NO_THROW(RigidRansacOptions().Check());
 }
 

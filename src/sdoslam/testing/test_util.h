@@ -1,5 +1,6 @@
 #pragma once
 
+#include <gtest/gtest.h>
 #include <stdlib.h>
 
 #include <filesystem>
@@ -52,6 +53,12 @@ inline std::string MessageOf(const std::function<void()>& f) {
     return e.what();
   }
   return "(no error)";
+}
+
+// Expects `f` to throw a std::exception whose message mentions `part`.
+inline void ExpectErrorMentioning(const std::function<void()>& f, const std::string& part) {
+  const std::string message = MessageOf(f);
+  EXPECT_NE(message.find(part), std::string::npos) << message;
 }
 
 // ../shared next to the checkout; tests that need it skip when it is absent.
