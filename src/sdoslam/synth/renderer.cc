@@ -14,6 +14,7 @@ struct Candidate {
   uint16_t id;
   cv::Rect screen;  // pixels the primitive may cover
   Eigen::Isometry3d T_texture_world;
+  RaysFrom rays;  // from the camera centre
 };
 
 // Conservative screen rectangle of a primitive's bounding sphere: the projection of the
@@ -47,6 +48,7 @@ RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_wor
                     const Camera& camera) {
   const int width = camera.width(), height = camera.height();
   const Eigen::Isometry3d T_camera_world = T_world_camera.inverse();
+  const Eigen::Vector3d origin = T_world_camera.translation();
 
   std::vector<Primitive> object_parts;
   std::vector<uint16_t> object_ids;
@@ -59,13 +61,16 @@ RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_wor
   std::vector<Candidate> candidates;
   for (const Primitive& p : scene.static_parts) {
     const cv::Rect r = ScreenBounds(p, T_camera_world, camera);
-    if (r.area() > 0) candidates.push_back({&p, 0, r, p.T_world_texture.inverse()});
+    if (r.area() > 0) {
+      candidates.push_back({&p, 0, r, p.T_world_texture.inverse(), RaysFrom(p, origin)});
+    }
   }
   for (size_t k = 0; k < object_parts.size(); ++k) {
     const cv::Rect r = ScreenBounds(object_parts[k], T_camera_world, camera);
     if (r.area() > 0) {
-      candidates.push_back(
-          {&object_parts[k], object_ids[k], r, object_parts[k].T_world_texture.inverse()});
+      candidates.push_back({&object_parts[k], object_ids[k], r,
+                            object_parts[k].T_world_texture.inverse(),
+                            RaysFrom(object_parts[k], origin)});
     }
   }
 
@@ -85,7 +90,6 @@ RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_wor
   view.instance.create(height, width, CV_16UC1);
   const CameraOptions& o = camera.options();
   const Eigen::Matrix3d R = T_world_camera.linear();
-  const Eigen::Vector3d origin = T_world_camera.translation();
   const Eigen::Vector3d light = scene.light_direction.normalized();
 
   // Rows in parallel. Under ThreadSanitizer (scripts/tsan.sh) they run in order on this thread:
@@ -112,7 +116,7 @@ RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_wor
       const Candidate* best_candidate = nullptr;
       for (const Candidate* c : row_candidates) {
         if (u < c->screen.x || u >= c->screen.x + c->screen.width) continue;
-        if (Intersect(*c->primitive, origin, direction, best.distance, &hit)) {
+        if (c->rays.Intersect(direction, best.distance, &hit)) {
           best = hit;
           best_candidate = c;
         }

@@ -25,8 +25,20 @@ float Unit(uint32_t h) { return static_cast<float>(h & 0xFFFFFF) / static_cast<f
 
 bool Intersect(const Primitive& p, const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
                double max_distance, Hit* hit) {
-  const Eigen::Matrix3d R = p.T_world_primitive.linear();
-  const Eigen::Vector3d o = R.transpose() * (origin - p.T_world_primitive.translation());
+  return RaysFrom(p, origin).Intersect(direction, max_distance, hit);
+}
+
+RaysFrom::RaysFrom(const Primitive& primitive, const Eigen::Vector3d& origin)
+    : primitive_(&primitive),
+      R_(primitive.T_world_primitive.linear()),
+      origin_(origin),
+      o_local_(R_.transpose() * (origin - primitive.T_world_primitive.translation())) {}
+
+bool RaysFrom::Intersect(const Eigen::Vector3d& direction, double max_distance, Hit* hit) const {
+  const Primitive& p = *primitive_;
+  const Eigen::Matrix3d& R = R_;
+  const Eigen::Vector3d& origin = origin_;
+  const Eigen::Vector3d& o = o_local_;
   const Eigen::Vector3d d = R.transpose() * direction;
   double t = 0;
   Eigen::Vector3d local_normal;

@@ -36,6 +36,20 @@ struct Hit {
 bool Intersect(const Primitive& primitive, const Eigen::Vector3d& origin,
                const Eigen::Vector3d& direction, double max_distance, Hit* hit);
 
+// The same test, and the same result bit for bit, for many rays from one origin (the renderer's
+// camera centre): what depends on the origin alone is computed once by the constructor.
+class RaysFrom {
+ public:
+  RaysFrom(const Primitive& primitive, const Eigen::Vector3d& origin);
+  bool Intersect(const Eigen::Vector3d& direction, double max_distance, Hit* hit) const;
+
+ private:
+  const Primitive* primitive_;
+  Eigen::Matrix3d R_;        // the primitive's orientation in the world
+  Eigen::Vector3d origin_;   // world
+  Eigen::Vector3d o_local_;  // the origin in the primitive's frame
+};
+
 // Procedural, non-repeating texture: several octaves of 3-D value cells (sharp-edged blocks,
 // so ORB finds corners) hashed from the cell index and seed. Returns linear RGB in [0, 1].
 Eigen::Vector3f TextureColour(const Eigen::Vector3f& base_colour, uint32_t seed,
