@@ -37,7 +37,8 @@ bool Intersect(const Primitive& primitive, const Eigen::Vector3d& origin,
                const Eigen::Vector3d& direction, double max_distance, Hit* hit);
 
 // The same test, and the same result bit for bit, for many rays from one origin (the renderer's
-// camera centre): what depends on the origin alone is computed once by the constructor.
+// camera centre): what depends on the origin alone is computed once by the constructor. It
+// keeps a pointer to the primitive, which must outlive it.
 class RaysFrom {
  public:
   RaysFrom(const Primitive& primitive, const Eigen::Vector3d& origin);
