@@ -10,7 +10,7 @@
 namespace sdoslam {
 
 struct PoseOptimizationOptions {
-  int rounds = 4;  // outlier classification rounds
+  int rounds = 4;  // outlier classification rounds, fewer once the classification settles
   int iterations_per_round = 10;
 };
 
@@ -22,7 +22,8 @@ struct PoseOptimizationResult {
 
 // Motion-only optimisation (ORB-SLAM's PoseOptimization): the camera pose that minimises the
 // Huber-robust reprojection error of fixed world points; after each round observations above the
-// χ² threshold are left out of the next (and may come back if they fit again).
+// χ² threshold are left out of the next (and may come back if they fit again). Observations
+// behind the starting camera start out.
 PoseOptimizationResult OptimizePose(const PinholeIntrinsics& intrinsics,
                                     const Eigen::Isometry3d& initial_T_camera_world,
                                     const std::vector<Eigen::Vector3d>& points_world,

@@ -104,18 +104,47 @@ Eigen::Isometry3d PoseFromParameters(const double* parameters) {
   return T;
 }
 
+template <>
+void WhitenedProjectionError<2>(const PinholeIntrinsics& k, const Eigen::Vector3d& p,
+                                const Eigen::Vector2d& observed, double sqrt_information,
+                                Eigen::Vector2d* residual, Eigen::Matrix<double, 2, 3>* d) {
+  const double iz = 1.0 / p.z();
+  (*residual)[0] = sqrt_information * (k.fx * p.x() * iz + k.cx - observed.x());
+  (*residual)[1] = sqrt_information * (k.fy * p.y() * iz + k.cy - observed.y());
+  if (d != nullptr) {
+    *d << k.fx * iz, 0, -k.fx * p.x() * iz * iz, 0, k.fy * iz, -k.fy * p.y() * iz * iz;
+    *d *= sqrt_information;
+  }
+}
+
+template <>
+void WhitenedProjectionError<3>(const PinholeIntrinsics& k, const Eigen::Vector3d& p,
+                                const Eigen::Vector3d& observed, double sqrt_information,
+                                Eigen::Vector3d* residual, Eigen::Matrix3d* d) {
+  const double iz = 1.0 / p.z();
+  const double u = k.fx * p.x() * iz + k.cx;
+  (*residual)[0] = sqrt_information * (u - observed.x());
+  (*residual)[1] = sqrt_information * (k.fy * p.y() * iz + k.cy - observed.y());
+  (*residual)[2] = sqrt_information * (u - k.bf * iz - observed.z());
+  if (d != nullptr) {
+    *d << k.fx * iz, 0, -k.fx * p.x() * iz * iz,  //
+        0, k.fy * iz, -k.fy * p.y() * iz * iz,    //
+        k.fx * iz, 0, -k.fx * p.x() * iz * iz + k.bf * iz * iz;
+    *d *= sqrt_information;
+  }
+}
+
 bool ReprojectionError::Evaluate(double const* const* parameters, double* residuals,
                                  double** jacobians) const {
   const CameraPoint c = Transform(parameters[0], parameters[1], jacobians != nullptr);
   if (c.p.z() <= 1e-6) return false;  // behind the camera: let the solver step back
-  const double iz = 1.0 / c.p.z();
-  residuals[0] = sqrt_information_ * (k_.fx * c.p.x() * iz + k_.cx - observed_.x());
-  residuals[1] = sqrt_information_ * (k_.fy * c.p.y() * iz + k_.cy - observed_.y());
-  if (jacobians != nullptr) {
-    Eigen::Matrix<double, 2, 3> d;
-    d << k_.fx * iz, 0, -k_.fx * c.p.x() * iz * iz, 0, k_.fy * iz, -k_.fy * c.p.y() * iz * iz;
-    WriteJacobians<2>(sqrt_information_ * d, c, jacobians);
-  }
+  Eigen::Vector2d r;
+  Eigen::Matrix<double, 2, 3> d;
+  WhitenedProjectionError<2>(k_, c.p, observed_, sqrt_information_, &r,
+                             jacobians != nullptr ? &d : nullptr);
+  Eigen::Map<Eigen::Vector2d> out(residuals);
+  out = r;
+  if (jacobians != nullptr) WriteJacobians<2>(d, c, jacobians);
   return true;
 }
 
@@ -123,18 +152,13 @@ bool StereoReprojectionError::Evaluate(double const* const* parameters, double* 
                                        double** jacobians) const {
   const CameraPoint c = Transform(parameters[0], parameters[1], jacobians != nullptr);
   if (c.p.z() <= 1e-6) return false;
-  const double iz = 1.0 / c.p.z();
-  const double u = k_.fx * c.p.x() * iz + k_.cx;
-  residuals[0] = sqrt_information_ * (u - observed_.x());
-  residuals[1] = sqrt_information_ * (k_.fy * c.p.y() * iz + k_.cy - observed_.y());
-  residuals[2] = sqrt_information_ * (u - k_.bf * iz - observed_.z());
-  if (jacobians != nullptr) {
-    Eigen::Matrix<double, 3, 3> d;
-    d << k_.fx * iz, 0, -k_.fx * c.p.x() * iz * iz,  //
-        0, k_.fy * iz, -k_.fy * c.p.y() * iz * iz,   //
-        k_.fx * iz, 0, -k_.fx * c.p.x() * iz * iz + k_.bf * iz * iz;
-    WriteJacobians<3>(sqrt_information_ * d, c, jacobians);
-  }
+  Eigen::Vector3d r;
+  Eigen::Matrix3d d;
+  WhitenedProjectionError<3>(k_, c.p, observed_, sqrt_information_, &r,
+                             jacobians != nullptr ? &d : nullptr);
+  Eigen::Map<Eigen::Vector3d> out(residuals);
+  out = r;
+  if (jacobians != nullptr) WriteJacobians<3>(d, c, jacobians);
   return true;
 }
 

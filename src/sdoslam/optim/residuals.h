@@ -26,6 +26,16 @@ class PoseManifold : public ceres::Manifold {
 void PoseToParameters(const Eigen::Isometry3d& T_camera_world, double* parameters);
 Eigen::Isometry3d PoseFromParameters(const double* parameters);
 
+// The whitened reprojection error of a camera-frame point `p` (in front of the camera):
+// sqrt_information · (π(p) − observed), with observed = (u, v) for N = 2, or (u, v, u_R) with the
+// virtual right coordinate u_R = u − bf/z for N = 3; and, where asked, its derivative by p.
+// The residuals below and motion-only optimisation share it.
+template <int N>
+void WhitenedProjectionError(const PinholeIntrinsics& k, const Eigen::Vector3d& p,
+                             const Eigen::Matrix<double, N, 1>& observed, double sqrt_information,
+                             Eigen::Matrix<double, N, 1>* residual,
+                             Eigen::Matrix<double, N, 3>* d_residual_d_p);
+
 // Reprojection error of a world point in a camera, whitened by the keypoint's level:
 // sqrt_information · (π(T·X) − observed). Blocks: pose (7), point (3).
 class ReprojectionError : public ceres::SizedCostFunction<2, 7, 3> {
