@@ -73,9 +73,11 @@ class GeometricSegmenter : public Segmenter {
   cv::Ptr<cv::rgbd::RgbdNormals> normals_;
   cv::Mat last_edges_;
   // Per-frame work buffers, kept so that their memory is reused from frame to frame.
-  cv::Mat z_, bgr_, colour_, points_, normals_out_, inside_;
+  cv::Mat z_, bgr_, points_, normals_out_, inside_;
   cv::Mat components_, stats_, centroids_;
-  std::vector<uint8_t> usable_;             // the crease test may use the pixel's normal
+  std::vector<uint8_t> usable_;    // the crease test may use the pixel's normal
+  std::vector<cv::Vec3f> colour_;  // L*a*b*, where has_colour_
+  std::vector<uint8_t> has_colour_;
   std::vector<int> candidates_;             // pixels the next growth pass looks at
   std::vector<int> visited_;                // the pass that last made the pixel a candidate
   std::vector<std::pair<int, int>> grown_;  // (pixel, label) one growth pass gives

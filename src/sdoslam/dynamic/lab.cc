@@ -35,28 +35,36 @@ struct LabTables {
   }
 };
 
-}  // namespace
-
-void BgrToLab(const cv::Mat& bgr, cv::Mat* lab) {
-  CV_Assert(bgr.type() == CV_8UC3);
+const LabTables& Tables() {
   static const LabTables tables;
-  lab->create(bgr.size(), CV_32FC3);
+  return tables;
+}
+
+cv::Vec3f LabOf(const LabTables& tables, const cv::Vec3b& bgr) {
   // sRGB primaries to XYZ (D65), with X and Z divided by the white point's (0.950456, 1.088754).
   constexpr float kX[3] = {0.412453f / 0.950456f, 0.357580f / 0.950456f, 0.180423f / 0.950456f};
   constexpr float kY[3] = {0.212671f, 0.715160f, 0.072169f};
   constexpr float kZ[3] = {0.019334f / 1.088754f, 0.119193f / 1.088754f, 0.950227f / 1.088754f};
+  const float b = tables.linear[bgr[0]], g = tables.linear[bgr[1]], r = tables.linear[bgr[2]];
+  const float fx = tables.F(kX[0] * r + kX[1] * g + kX[2] * b);
+  const float fy = tables.F(kY[0] * r + kY[1] * g + kY[2] * b);
+  const float fz = tables.F(kZ[0] * r + kZ[1] * g + kZ[2] * b);
+  return {116.0f * fy - 16.0f, 500.0f * (fx - fy), 200.0f * (fy - fz)};
+}
+
+}  // namespace
+
+void BgrToLab(const cv::Mat& bgr, cv::Mat* lab) {
+  CV_Assert(bgr.type() == CV_8UC3);
+  const LabTables& tables = Tables();
+  lab->create(bgr.size(), CV_32FC3);
   for (int y = 0; y < bgr.rows; ++y) {
     const cv::Vec3b* in = bgr.ptr<cv::Vec3b>(y);
     cv::Vec3f* out = lab->ptr<cv::Vec3f>(y);
-    for (int x = 0; x < bgr.cols; ++x) {
-      const float b = tables.linear[in[x][0]], g = tables.linear[in[x][1]],
-                  r = tables.linear[in[x][2]];
-      const float fx = tables.F(kX[0] * r + kX[1] * g + kX[2] * b);
-      const float fy = tables.F(kY[0] * r + kY[1] * g + kY[2] * b);
-      const float fz = tables.F(kZ[0] * r + kZ[1] * g + kZ[2] * b);
-      out[x] = cv::Vec3f(116.0f * fy - 16.0f, 500.0f * (fx - fy), 200.0f * (fy - fz));
-    }
+    for (int x = 0; x < bgr.cols; ++x) out[x] = LabOf(tables, in[x]);
   }
 }
+
+cv::Vec3f BgrPixelToLab(const cv::Vec3b& bgr) { return LabOf(Tables(), bgr); }
 
 }  // namespace sdoslam

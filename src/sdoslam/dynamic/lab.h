@@ -15,4 +15,7 @@ namespace sdoslam {
 // table for the sRGB curve and one of 4,097 for the cube root, made in microseconds.
 void BgrToLab(const cv::Mat& bgr, cv::Mat* lab);
 
+// The same conversion of one pixel, for callers that need a few pixels' colours.
+cv::Vec3f BgrPixelToLab(const cv::Vec3b& bgr);
+
 }  // namespace sdoslam

@@ -73,6 +73,24 @@ TEST(BgrToLab, FollowsTheCieFormulasAndOpenCvsConventions) {
   EXPECT_NEAR(red[2], 67.20f, 0.1f);
 }
 
+TEST(BgrPixelToLab, FollowsTheCieFormulasForEveryPixelOfARandomImage) {
+  cv::Mat bgr(32, 64, CV_8UC3);
+  cv::RNG rng(5);
+  rng.fill(bgr, cv::RNG::UNIFORM, 0, 256);
+  cv::Mat image;
+  BgrToLab(bgr, &image);
+  for (int y = 0; y < bgr.rows; ++y) {
+    for (int x = 0; x < bgr.cols; ++x) {
+      const cv::Vec3b& p = bgr.at<cv::Vec3b>(y, x);
+      const cv::Vec3f lab = BgrPixelToLab(p);
+      // The segmenter's colours are the same whichever way they are converted.
+      ASSERT_EQ(lab, image.at<cv::Vec3f>(y, x)) << "pixel " << x << ", " << y;
+      const cv::Vec3d exact = ExactLab(p);
+      for (int c = 0; c < 3; ++c) ASSERT_NEAR(lab[c], exact[c], 0.01);
+    }
+  }
+}
+
 TEST(BgrToLab, RejectsImagesThatAreNotEightBitColour) {
   cv::Mat lab;
   EXPECT_THROW(BgrToLab(cv::Mat(4, 4, CV_32FC3, cv::Scalar(0.5, 0.5, 0.5)), &lab), cv::Exception);
