@@ -10,6 +10,7 @@
 #include "sdoslam/features/orb_extractor.h"
 #include "sdoslam/map/map.h"
 #include "sdoslam/optim/optimizer.h"
+#include "sdoslam/optim/pose_graph.h"
 #include "sdoslam/synth/renderer.h"
 #include "sdoslam/synth/scenarios.h"
 #include "sdoslam/testing/single_feature_keyframe.h"
@@ -111,6 +112,36 @@ void BM_OptimizePose(benchmark::State& state) {
     benchmark::DoNotOptimize(OptimizePose(k, initial, points, observations).num_inliers);
 }
 BENCHMARK(BM_OptimizePose)->Arg(300)->Arg(800)->Unit(benchmark::kMillisecond);
+
+// The essential graph of a long sequence: state.range(0) keyframes 15 cm apart, each linked to
+// its next 10, every node but the first moved by centimetres before the solve (the loop
+// closer's budget; pose_graph_test checks the result).
+void BM_OptimizePoseGraph(benchmark::State& state) {
+  std::mt19937 rng(3);
+  std::normal_distribution<double> noise(0, 0.02);
+  PoseGraphProblem truth;
+  for (int k = 0; k < state.range(0); ++k) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = Eigen::AngleAxisd(0.01 * k, Eigen::Vector3d::UnitY()).toRotationMatrix();
+    T.translation() = Eigen::Vector3d(0.15 * k, 0, 0);
+    truth.poses.push_back(T);
+  }
+  for (int i = 0; i < state.range(0); ++i) {
+    for (int j = i + 1; j <= i + 10 && j < state.range(0); ++j)
+      truth.edges.push_back({i, j, truth.poses[i] * truth.poses[j].inverse(), 1.0});
+  }
+  truth.fixed.assign(truth.poses.size(), false);
+  truth.fixed[0] = true;
+  for (auto _ : state) {
+    state.PauseTiming();
+    PoseGraphProblem g = truth;
+    for (size_t k = 1; k < g.poses.size(); ++k)
+      g.poses[k].translation() += Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+    state.ResumeTiming();
+    benchmark::DoNotOptimize(OptimizePoseGraph(&g).final_cost);
+  }
+}
+BENCHMARK(BM_OptimizePoseGraph)->Arg(500)->Unit(benchmark::kMillisecond);
 
 // A map point's representative descriptor with state.range(0) observers: quadratic up to
 // MapPoint::kMaxDescriptorCandidates, flat beyond (conventional tracking in a dynamic scene
