@@ -24,11 +24,11 @@ ceres::CostFunction* MakeResidual(const PinholeIntrinsics& k, const PointObserva
 // correction), several times a reprojection error's arithmetic: with a block per observation that
 // was two thirds of OptimizePose (callgrind, fr2_desk_50 sdo: 1.57 G instructions in 30 frames).
 //
-// The loss becomes part of the residual: r̃ = √(ρ(s)/s)·r for the squared error s = |r|², so
-// |r̃|² = ρ(s) and Ceres minimises Σ ρ(s)/2, the cost a loss function per block gives. The Jacobian
-// is r̃'s own, J̃ = w·J + c·r·(rᵀJ) with w = √(ρ/s), c = (ρ'/s − ρ/s²)/w, whose gradient J̃ᵀr̃ =
-// ρ'·Jᵀr is the robust gradient; only the Gauss-Newton model of an error beyond Huber's threshold
-// differs from Ceres' own correction. Inside the threshold ρ(s) = s, and r̃, J̃ are r, J.
+// The loss is applied as Ceres applies Huber's (its Corrector; ρ'' ≤ 0, so no Triggs term), with
+// one row more per observation so that the cost stays exact: the rows are √ρ'·r with Jacobian
+// √ρ'·J, then e = √(ρ − ρ'·s) with Jacobian 0. Their squares sum to ρ(s), so Ceres minimises
+// Σ ρ(s)/2; the gradient √ρ'·Jᵀ·√ρ'·r = ρ'·Jᵀr is the robust one; and the model's change,
+// |r̂ + Ĵδ|² − |r̂|², is the one Ceres' own correction gives. Inside the threshold ρ' = 1, e = 0.
 // An observation that is switched off (an outlier of the last round) gives zero rows.
 class RobustPoseResiduals final : public ceres::CostFunction {
  public:
@@ -37,7 +37,7 @@ class RobustPoseResiduals final : public ceres::CostFunction {
                       const std::vector<bool>& active)
       : k_(k), points_(points), observations_(observations), active_(active) {
     int rows = 0;
-    for (const PointObservation& m : observations) rows += m.stereo() ? 3 : 2;
+    for (const PointObservation& m : observations) rows += (m.stereo() ? 3 : 2) + 1;
     set_num_residuals(rows);
     mutable_parameter_block_sizes()->push_back(7);
   }
@@ -51,7 +51,7 @@ class RobustPoseResiduals final : public ceres::CostFunction {
     int row = 0;
     for (size_t i = 0; i < observations_.size(); ++i) {
       const PointObservation& m = observations_[i];
-      const int rows = m.stereo() ? 3 : 2;
+      const int rows = (m.stereo() ? 3 : 2) + 1;  // the error, then the loss's remainder
       double* r = residuals + row;
       double* J = jacobian != nullptr ? jacobian + 7 * row : nullptr;
       row += rows;
@@ -83,23 +83,22 @@ class RobustPoseResiduals final : public ceres::CostFunction {
     WhitenedProjectionError<N>(k_, p, observed, sqrt_information, &r,
                                jacobian_out != nullptr ? &d_p : nullptr);
     const double s = r.squaredNorm();
-    double w = 1, c = 0;
+    double sqrt_rho1 = 1, remainder = 0;
     if (s > huber_threshold2) {  // Huber: ρ(s) = 2a√s − a², ρ'(s) = a/√s, with a² the threshold
       const double a = std::sqrt(huber_threshold2), root_s = std::sqrt(s);
-      const double rho = 2 * a * root_s - huber_threshold2, rho1 = a / root_s;
-      w = std::sqrt(rho / s);
-      c = (rho1 / s - rho / (s * s)) / w;
+      sqrt_rho1 = std::sqrt(a / root_s);
+      remainder = std::sqrt(std::max(0.0, a * root_s - huber_threshold2));  // √(ρ − ρ'·s)
     }
-    Eigen::Map<Eigen::Matrix<double, N, 1>> residual(residual_out);
-    residual = w * r;
+    Eigen::Map<Eigen::Matrix<double, N + 1, 1>> residual(residual_out);
+    residual.template head<N>() = sqrt_rho1 * r;
+    residual[N] = remainder;
     if (jacobian_out == nullptr) return;
     // ∂p/∂δ = [−[p]ₓ  I] for the left perturbation of PoseManifold.
-    Eigen::Matrix<double, N, 6> J;
-    J.template leftCols<3>() = -d_p * Hat(p);
-    J.template rightCols<3>() = d_p;
-    Eigen::Map<Eigen::Matrix<double, N, 7, Eigen::RowMajor>> jacobian(jacobian_out);
-    jacobian.template leftCols<6>() = w * J + (c * r) * (r.transpose() * J);
+    Eigen::Map<Eigen::Matrix<double, N + 1, 7, Eigen::RowMajor>> jacobian(jacobian_out);
+    jacobian.template topLeftCorner<N, 3>() = -sqrt_rho1 * d_p * Hat(p);
+    jacobian.template block<N, 3>(0, 3) = sqrt_rho1 * d_p;
     jacobian.col(6).setZero();
+    jacobian.row(N).setZero();
   }
 
   PinholeIntrinsics k_;
