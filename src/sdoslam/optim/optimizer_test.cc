@@ -81,6 +81,13 @@ void NoisyProblem(std::vector<Eigen::Vector3d>* points, std::vector<PointObserva
   }
 }
 
+// Where NoisyProblem's solves start: TruePose moved by about 5 cm.
+Eigen::Isometry3d StartingPose() {
+  Eigen::Isometry3d initial = TruePose();
+  initial.translation() += Eigen::Vector3d(0.04, 0.02, -0.03);
+  return initial;
+}
+
 // The pose that minimises Σ ρ(s)/2 over all observations, solved the textbook way: a residual
 // block per observation with Ceres' Huber loss, the point a constant block, tight tolerances.
 Eigen::Isometry3d ReferenceRobustPose(const Eigen::Isometry3d& initial,
@@ -121,8 +128,7 @@ TEST(OptimizePose, ReachesTheMinimumOfTheHuberCostThatALossPerObservationDefines
   std::vector<Eigen::Vector3d> points;
   std::vector<PointObservation> obs;
   NoisyProblem(&points, &obs);
-  Eigen::Isometry3d initial = TruePose();
-  initial.translation() += Eigen::Vector3d(0.04, 0.02, -0.03);
+  const Eigen::Isometry3d initial = StartingPose();
   const Eigen::Isometry3d reference = ReferenceRobustPose(initial, points, obs);
   // One round (no observation is dropped), run to convergence.
   const PoseOptimizationResult r = OptimizePose(kK, initial, points, obs, {1, 100});
@@ -138,8 +144,7 @@ TEST(OptimizePose, APointBehindTheStartingPoseIsAnOutlierAndThePoseIsStillFound)
   std::vector<Eigen::Vector3d> points;
   std::vector<PointObservation> obs;
   NoisyProblem(&points, &obs);
-  Eigen::Isometry3d initial = TruePose();
-  initial.translation() += Eigen::Vector3d(0.04, 0.02, -0.03);
+  const Eigen::Isometry3d initial = StartingPose();
   // A point 0.5 m behind the starting camera (a wrong match to a point far behind).
   points.push_back(initial.inverse() * Eigen::Vector3d(0.1, 0.1, -0.5));
   PointObservation behind;
