@@ -12,6 +12,8 @@ namespace {
 
 constexpr int kPatchSize = 31;
 constexpr int kHalfPatch = 15;
+// cv::ORB's pyramid step, which decides the scale coarse levels are described at (DescribeCoarse).
+constexpr float kOpenCvPyramidStep = 1.2f;
 constexpr int kBorder = 19;  // descriptors need the rotated 31-px patch plus smoothing
 
 bool Stronger(const cv::KeyPoint& a, const cv::KeyPoint& b) {
@@ -105,6 +107,8 @@ OrbExtractor::OrbExtractor(const OrbOptions& options) : options_(options) {
   }
   descriptor_ = cv::ORB::create(1 << 20, 1.2f, 1, kBorder, 0, 2, cv::ORB::HARRIS_SCORE, kPatchSize,
                                 options_.fast_threshold);
+  coarse_descriptor_ = cv::ORB::create(1 << 20, kOpenCvPyramidStep, 1, /*edgeThreshold=*/0, 0, 2,
+                                       cv::ORB::HARRIS_SCORE, kPatchSize, options_.fast_threshold);
 }
 
 std::vector<cv::KeyPoint> OrbExtractor::DetectLevel(const cv::Mat& image, int level,
@@ -140,6 +144,37 @@ std::vector<cv::KeyPoint> OrbExtractor::DetectLevel(const cv::Mat& image, int le
   return DistributeEvenly(all, area, quota);
 }
 
+cv::Mat OrbExtractor::DescribeCoarse(const cv::Mat& level_image, int level,
+                                     std::vector<cv::KeyPoint> keypoints) const {
+  // The L-th image of cv::ORB's pyramid over the level image, made as cv::ORB makes it (each
+  // from the one before, 1.2 smaller, sizes rounded from the level image's), and the
+  // keypoints moved onto it as cv::ORB moves them (float products). Described there as octave
+  // 0, cv::ORB smooths and borders that one image alone; its border is the same 23 pixels
+  // (the rotated patch's, larger than any edge threshold here), and edge threshold 0 keeps it
+  // from dropping keypoints that are near this small image's edge but were not near the
+  // level image's.
+  const auto opencv_scale = [](int j) {
+    return static_cast<float>(std::pow(static_cast<double>(kOpenCvPyramidStep), j));
+  };
+  cv::Mat layer = level_image;
+  for (int j = 1; j <= level; ++j) {
+    const float s = opencv_scale(j);
+    cv::Mat smaller;
+    cv::resize(layer, smaller,
+               cv::Size(cvRound(static_cast<float>(level_image.cols) / s),
+                        cvRound(static_cast<float>(level_image.rows) / s)),
+               0, 0, cv::INTER_LINEAR_EXACT);
+    layer = smaller;
+  }
+  const float to_layer = 1.f / opencv_scale(level);
+  for (cv::KeyPoint& k : keypoints) k.pt *= to_layer;
+  const size_t count = keypoints.size();
+  cv::Mat descriptors;
+  coarse_descriptor_->compute(layer, keypoints, descriptors);
+  CV_Assert(keypoints.size() == count);
+  return descriptors;
+}
+
 void OrbExtractor::Extract(const cv::Mat& gray, std::vector<cv::KeyPoint>* keypoints,
                            cv::Mat* descriptors) const {
   CV_Assert(gray.type() == CV_8UC1);
@@ -172,14 +207,18 @@ void OrbExtractor::Extract(const cv::Mat& gray, std::vector<cv::KeyPoint>* keypo
           std::atan2(static_cast<double>(m01), static_cast<double>(m10)) * 180.0 / CV_PI);
       if (angle < 0) angle += 360.0f;
       k.angle = angle;
-      k.octave = level;
-      k.size = static_cast<float>(kPatchSize * scale_[level]);
     }
     cv::Mat desc;
-    // OpenCV smooths the level before sampling the descriptor pairs, as the ORB paper does.
-    descriptor_->compute(level_image, kps, desc);
+    if (level == 0 || kps.empty()) {
+      // OpenCV smooths the image before sampling the descriptor pairs, as the ORB paper does.
+      descriptor_->compute(level_image, kps, desc);
+    } else {
+      desc = DescribeCoarse(level_image, level, kps);
+    }
     for (cv::KeyPoint& k : kps) {
       k.pt *= static_cast<float>(scale_[level]);
+      k.octave = level;
+      k.size = static_cast<float>(kPatchSize * scale_[level]);
     }
     keypoints->insert(keypoints->end(), kps.begin(), kps.end());
     // A level without corners (a plain wall, a covered lens) gives an empty matrix, which
