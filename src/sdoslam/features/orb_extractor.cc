@@ -11,7 +11,7 @@ namespace {
 
 constexpr int kPatchSize = 31;
 constexpr int kHalfPatch = 15;
-// cv::ORB's pyramid step, which decides the scale coarse levels are described at (DescribeCoarse).
+// cv::ORB's pyramid step, which decides the scale coarse levels are described at (DescribeLevel).
 constexpr float kOpenCvPyramidStep = 1.2f;
 constexpr int kBorder = 19;  // descriptors need the rotated 31-px patch plus smoothing
 
@@ -121,10 +121,8 @@ OrbExtractor::OrbExtractor(const OrbOptions& options) : options_(options) {
     circle_half_width_.push_back(
         static_cast<int>(std::lround(std::sqrt(kHalfPatch * kHalfPatch - v * v))));
   }
-  descriptor_ = cv::ORB::create(1 << 20, 1.2f, 1, kBorder, 0, 2, cv::ORB::HARRIS_SCORE, kPatchSize,
-                                options_.fast_threshold);
-  coarse_descriptor_ = cv::ORB::create(1 << 20, kOpenCvPyramidStep, 1, /*edgeThreshold=*/0, 0, 2,
-                                       cv::ORB::HARRIS_SCORE, kPatchSize, options_.fast_threshold);
+  descriptor_ = cv::ORB::create(1 << 20, kOpenCvPyramidStep, 1, /*edgeThreshold=*/0, 0, 2,
+                                cv::ORB::HARRIS_SCORE, kPatchSize, options_.fast_threshold);
 }
 
 std::vector<cv::KeyPoint> OrbExtractor::DetectLevel(const cv::Mat& image, int level,
@@ -160,15 +158,17 @@ std::vector<cv::KeyPoint> OrbExtractor::DetectLevel(const cv::Mat& image, int le
   return DistributeEvenly(all, area, quota);
 }
 
-cv::Mat OrbExtractor::DescribeCoarse(const cv::Mat& level_image, int level,
-                                     std::vector<cv::KeyPoint> keypoints) const {
+cv::Mat OrbExtractor::DescribeLevel(const cv::Mat& level_image, int level,
+                                    std::vector<cv::KeyPoint> keypoints) const {
+  if (keypoints.empty()) return {};  // vconcat in Extract leaves such levels out
   // The L-th image of cv::ORB's pyramid over the level image, made as cv::ORB makes it (each
   // from the one before, 1.2 smaller, sizes rounded from the level image's), and the
-  // keypoints moved onto it as cv::ORB moves them (float products). Described there as octave
-  // 0, cv::ORB smooths and borders that one image alone; its border is the same 23 pixels
-  // (the rotated patch's, larger than any edge threshold here), and edge threshold 0 keeps it
-  // from dropping keypoints that are near this small image's edge but were not near the
-  // level image's.
+  // keypoints moved onto it as cv::ORB moves them (float products); for the first level, the
+  // level image itself. Described there as octave 0, cv::ORB smooths and borders that one
+  // image alone; its border is the same 23 pixels (the rotated patch's, larger than any edge
+  // threshold here), and edge threshold 0 keeps it from dropping keypoints that are near this
+  // small image's edge but were not near the level image's (DetectLevel keeps every keypoint
+  // kBorder pixels inside the level image).
   const auto opencv_scale = [](int j) {
     return static_cast<float>(std::pow(static_cast<double>(kOpenCvPyramidStep), j));
   };
@@ -186,7 +186,7 @@ cv::Mat OrbExtractor::DescribeCoarse(const cv::Mat& level_image, int level,
   for (cv::KeyPoint& k : keypoints) k.pt *= to_layer;
   const size_t count = keypoints.size();
   cv::Mat descriptors;
-  coarse_descriptor_->compute(layer, keypoints, descriptors);
+  descriptor_->compute(layer, keypoints, descriptors);
   CV_Assert(keypoints.size() == count);
   return descriptors;
 }
@@ -224,13 +224,8 @@ void OrbExtractor::Extract(const cv::Mat& gray, std::vector<cv::KeyPoint>* keypo
       if (angle < 0) angle += 360.0f;
       k.angle = angle;
     }
-    cv::Mat desc;
-    if (level == 0 || kps.empty()) {
-      // OpenCV smooths the image before sampling the descriptor pairs, as the ORB paper does.
-      descriptor_->compute(level_image, kps, desc);
-    } else {
-      desc = DescribeCoarse(level_image, level, kps);
-    }
+    // OpenCV smooths the image before sampling the descriptor pairs, as the ORB paper does.
+    const cv::Mat desc = DescribeLevel(level_image, level, kps);
     for (cv::KeyPoint& k : kps) {
       k.pt *= static_cast<float>(scale_[level]);
       k.octave = level;

@@ -49,7 +49,7 @@ class OrbExtractor {
 
  private:
   std::vector<cv::KeyPoint> DetectLevel(const cv::Mat& image, int level, int quota) const;
-  // Descriptors of the keypoints (level coordinates) of a pyramid level above the first.
+  // Descriptors of the keypoints (level coordinates) of a pyramid level, in their order.
   // A feature of level L is described on the image at 1.2^(2L), a patch 1.2^L times larger than
   // the level's own, which is what cv::ORB does with keypoints of octave L on the level image
   // (it samples its own L-th pyramid image of what it is handed): sdoslam was built and tuned
@@ -57,15 +57,14 @@ class OrbExtractor {
   // clip (fr2_desk_50, ATE: conventional 3.3 -> 4.1 mm, sdo 3.1 -> 4.2; played forward and
   // backward 3.8 -> 4.7 and 3.7 -> 5.0; fewer matches and inliers a frame).
   // The same bits, without building and smoothing the L images below the one sampled.
-  cv::Mat DescribeCoarse(const cv::Mat& level_image, int level,
-                         std::vector<cv::KeyPoint> keypoints) const;
+  cv::Mat DescribeLevel(const cv::Mat& level_image, int level,
+                        std::vector<cv::KeyPoint> keypoints) const;
 
   OrbOptions options_;
   std::vector<double> scale_, sigma2_, inv_sigma2_;
   std::vector<int> features_per_level_;
   std::vector<int> circle_half_width_;  // intensity-centroid patch
-  cv::Ptr<cv::ORB> descriptor_;         // the first level
-  cv::Ptr<cv::ORB> coarse_descriptor_;  // the others (DescribeCoarse)
+  cv::Ptr<cv::ORB> descriptor_;         // DescribeLevel
 };
 
 // Selects at most `count` keypoints spread evenly over `area`: the area is divided into the

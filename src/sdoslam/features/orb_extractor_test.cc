@@ -116,7 +116,7 @@ TEST(OrbExtractor, ALevelIsDescribedAtItsScaleSquared) {
   orb.Extract(image, &keypoints, &descriptors);
   const cv::Ptr<cv::ORB> reference =
       cv::ORB::create(1 << 20, 1.2f, 1, /*edgeThreshold=*/19, 0, 2, cv::ORB::HARRIS_SCORE, 31);
-  for (int level = 1; level <= 7; ++level) {
+  for (int level = 0; level <= 7; ++level) {
     const double scale = std::pow(1.2, level);
     cv::Mat level_image;
     cv::resize(image, level_image,
