@@ -44,9 +44,7 @@ class RobustPoseResiduals final : public ceres::CostFunction {
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
-    const Eigen::Map<const Eigen::Quaterniond> q(parameters[0]);
-    const Eigen::Map<const Eigen::Vector3d> t(parameters[0] + 4);
-    const Eigen::Matrix3d R = q.normalized().toRotationMatrix();
+    const Eigen::Isometry3d T = PoseFromParameters(parameters[0]);
     double* jacobian = jacobians != nullptr ? jacobians[0] : nullptr;
     int row = 0;
     for (size_t i = 0; i < observations_.size(); ++i) {
@@ -60,7 +58,7 @@ class RobustPoseResiduals final : public ceres::CostFunction {
         if (J != nullptr) std::fill(J, J + 7 * rows, 0.0);
         continue;
       }
-      const Eigen::Vector3d p = R * points_[i] + t;
+      const Eigen::Vector3d p = T * points_[i];
       if (p.z() <= 1e-6) return false;  // behind the camera: the solver steps back
       const double sqrt_information = std::sqrt(m.inv_sigma2);
       if (m.stereo()) {
