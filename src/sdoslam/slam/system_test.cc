@@ -215,6 +215,59 @@ TEST(SlamRobustness, RelocalizesAfterTheCameraMovedWhileTheViewWasBlocked) {
   EXPECT_LE(ate.translation.rmse, 0.01);
 }
 
+// With the consistency check on (segments given), a frame relocalized after a loss longer than
+// consistency.frame_gap has no tracked frame to measure scene flow from: it is not made a
+// keyframe, though the keyframe rule asks for one, and the frame after it may be. After a
+// short loss the relocalized frame is judged, and keyframes are made as without the rule.
+TEST(SlamRobustness, AFrameTheCheckCannotJudgeIsNotMadeAKeyFrame) {
+  testing::TempDir dir;
+  RenderStaticRoom(dir, synth::CameraMotion::kHalfsphere, 60);
+  const TumDataset dataset(dir / "seq", synth::SyntheticCamera());
+  const cv::Mat no_segments(120, 160, CV_32SC1, cv::Scalar(-1));
+  auto run = [&](size_t lost_from, size_t lost_to, bool only_judged) {
+    SlamOptions options;
+    options.tracking.keyframes_only_from_judged_frames = only_judged;
+    // Nearly every frame asks for a keyframe: one that tracks less than 99 % of its
+    // reference's points.
+    options.tracking.reference_ratio = 0.99;
+    System slam(synth::SyntheticCamera(), options);
+    std::vector<TrackingResult> results;
+    for (size_t i = 0; i < 60; ++i) {
+      RgbdFrame frame = dataset.Load(i);
+      if (i >= lost_from && i < lost_to) {  // a covered lens while the camera moves on
+        frame.bgr.setTo(cv::Scalar(30, 30, 30));
+        frame.depth.setTo(0.0f);
+      }
+      results.push_back(
+          slam.TrackRgbd(i, frame.timestamp, frame.bgr, frame.depth, nullptr, {}, no_segments));
+    }
+    const AteResult ate =
+        ComputeAte(ReadTumTrajectory(dir / "seq" / "groundtruth.txt"), slam.CameraTrajectory());
+    EXPECT_LE(ate.translation.rmse, 0.01) << only_judged;
+    return results;
+  };
+  const SceneFlowOptions check;
+  const size_t back = 40 + 2 * static_cast<size_t>(check.frame_gap);  // a long loss
+  const std::vector<TrackingResult> rule = run(40, back, true);
+  const std::vector<TrackingResult> without = run(40, back, false);
+  for (const auto* results : {&rule, &without}) {
+    ASSERT_TRUE((*results)[back].relocalized);
+    for (size_t i = back; i < 60; ++i) EXPECT_EQ((*results)[i].state, TrackingState::kOk) << i;
+  }
+  EXPECT_EQ(rule[back].check_measured, 0);  // nothing to judge against
+  EXPECT_TRUE(without[back].keyframe);      // the keyframe rule asks for one...
+  EXPECT_FALSE(rule[back].keyframe);        // ... and the unjudged frame is not made one
+  EXPECT_GT(rule[back + 1].check_measured, 0);
+  // A loss shorter than frame_gap: the relocalized frame is judged against the frame before
+  // the loss, and the rule changes no keyframe.
+  const size_t short_back = 40 + static_cast<size_t>(check.frame_gap) - 2;
+  const std::vector<TrackingResult> short_rule = run(40, short_back, true);
+  const std::vector<TrackingResult> short_without = run(40, short_back, false);
+  ASSERT_TRUE(short_rule[short_back].relocalized);
+  EXPECT_GT(short_rule[short_back].check_measured, 0);
+  for (size_t i = 0; i < 60; ++i) EXPECT_EQ(short_rule[i].keyframe, short_without[i].keyframe) << i;
+}
+
 // A person passing close fills the view for a few frames, then uncovers it from one side: on
 // the first frame back only the left 40 % of the room is in view. The camera has hardly moved,
 // so the map is searched by projection around the pose carried on from before. Here the

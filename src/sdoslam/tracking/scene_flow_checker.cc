@@ -31,6 +31,13 @@ const LkPyramid& SceneFlowChecker::CurrentPyramid(size_t index, const cv::Mat& g
   return current_pyramid_;
 }
 
+const SceneFlowChecker::PastFrame* SceneFlowChecker::TrackedPastFrame(size_t index) const {
+  for (const PastFrame& p : history_) {
+    if (p.tracked && p.index < index) return &p;
+  }
+  return nullptr;
+}
+
 void SceneFlowChecker::CorrectPoses(const Eigen::Isometry3d& change) {
   for (PastFrame& past : history_) past.T_camera_world = past.T_camera_world * change;
 }
@@ -40,14 +47,7 @@ std::vector<MapPoint*> SceneFlowChecker::CheckSceneFlow(Frame& frame, const Cons
                                                         MapLockReleaser& map_lock,
                                                         TrackingResult* result) {
   const SceneFlowOptions& o = options_;
-  // The earliest remembered frame that was tracked: frame k − frame_gap when all were.
-  const PastFrame* past = nullptr;
-  for (const PastFrame& p : history_) {
-    if (p.tracked && p.index < frame.index) {
-      past = &p;
-      break;
-    }
-  }
+  const PastFrame* past = TrackedPastFrame(frame.index);
   if (past == nullptr) return {};
   const Camera& camera = frame.geometry->camera;
   // Inliers of the frame's matches, and those of them that are established landmarks.

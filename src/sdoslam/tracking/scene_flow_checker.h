@@ -33,6 +33,10 @@ class SceneFlowChecker {
   void CorrectPoses(const Eigen::Isometry3d& change);
   size_t remembered() const { return history_.size(); }
 
+  // Whether CheckSceneFlow can judge frame `index`: a tracked frame before it is remembered
+  // (none after a loss of frame_gap frames or more).
+  bool CanJudge(size_t index) const { return TrackedPastFrame(index) != nullptr; }
+
   // The paper's iterative check (§III-E) on `frame`, tracked at a rough pose with its matches
   // (frame.map_points, frame.outlier), against the earliest remembered tracked frame before it
   // (nothing is done without one). Features judged dynamic are labelled kSceneFlowLabel and
@@ -64,6 +68,9 @@ class SceneFlowChecker {
     bool tracked;
   };
 
+  // The earliest remembered tracked frame before frame `index` (frame index − frame_gap when
+  // all were tracked); null when there is none.
+  const PastFrame* TrackedPastFrame(size_t index) const;
   // The current frame's pyramid, built once by CheckSceneFlow and handed to RememberFrame.
   const LkPyramid& CurrentPyramid(size_t index, const cv::Mat& gray);
 

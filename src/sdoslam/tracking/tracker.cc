@@ -107,6 +107,8 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
                                                Refiner()) &&
          TrackLocalMap(frame, &result);
   }
+  // Whether this frame's features were judged for scene flow (or need not be).
+  const bool judged = consistency == nullptr || checker_.CanJudge(frame.index);
   if (ok && consistency != nullptr) {
     const std::vector<MapPoint*> judged_dynamic =
         checker_.CheckSceneFlow(frame, *consistency, Refiner(), map_lock_, &result);
@@ -139,11 +141,12 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
       has_velocity_ = true;
     }
     frames_lost_ = 0;
-    if (mapping_accepts && NeedKeyFrame(options_, frame,
-                                        {.inliers = result.inliers,
-                                         .reference_matches = ReferenceMatches(*map_, *reference_),
-                                         .last_keyframe_frame = last_keyframe_frame_,
-                                         .mapping_idle = mapping_idle})) {
+    if (mapping_accepts && (judged || !options_.keyframes_only_from_judged_frames) &&
+        NeedKeyFrame(options_, frame,
+                     {.inliers = result.inliers,
+                      .reference_matches = ReferenceMatches(*map_, *reference_),
+                      .last_keyframe_frame = last_keyframe_frame_,
+                      .mapping_idle = mapping_idle})) {
       *new_keyframe = CreateKeyFrame(map_, options_, frame);
       reference_ = *new_keyframe;
       last_keyframe_frame_ = frame.index;

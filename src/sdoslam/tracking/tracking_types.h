@@ -45,6 +45,11 @@ struct TrackerOptions {
   // 0: off.
   int relocalization_prior_frames = 30;
   double relocalization_radius_factor = 4.0;
+  // With the consistency check on, a frame it cannot judge (relocalized after a loss of
+  // consistency.frame_gap frames or more: no tracked frame to measure scene flow from) is never
+  // made a keyframe, as the map would take in whatever the front end missed on the mover that
+  // filled the view. The next frame is judged (over a shorter baseline) and may be one.
+  bool keyframes_only_from_judged_frames = true;
   SceneFlowOptions consistency;  // the scene-flow consistency check and map hygiene
   void Check(const std::string& path = "tracking.") const;  // Error names path + setting
   // Every setting, as its config key (core/config.h: ReadFields, WriteFields).
@@ -61,6 +66,7 @@ struct TrackerOptions {
     visit("relocalization_place_candidates", o.relocalization_place_candidates);
     visit("relocalization_prior_frames", o.relocalization_prior_frames);
     visit("relocalization_radius_factor", o.relocalization_radius_factor);
+    visit("keyframes_only_from_judged_frames", o.keyframes_only_from_judged_frames);
     visit("consistency", o.consistency);
   }
 };
