@@ -26,7 +26,7 @@ struct LoopClosingOptions {
   // keyframes) were found for this many consecutive keyframes after the first: one look-alike
   // keyframe is not a loop. ORB-SLAM2 asks 3, with a keyframe every few frames; this tracker
   // makes one every 30-50 frames where the view is full of close points (the long loop: 19 in
-  // 650 frames), so 3 would ask for 4-6 s of revisit. The geometric check (RANSAC, then 40
+  // 700 frames), so 3 would ask for 4-6 s of revisit. The geometric check (RANSAC, then 40
   // inliers after a projection search) guards against look-alikes.
   int consistent_detections = 1;
   // Geometric verification: descriptor matches with the candidate's map points, inliers of the

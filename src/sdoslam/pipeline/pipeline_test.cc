@@ -279,12 +279,12 @@ TEST(LongRun, ConventionalKeyFramesAreNotKeptByPointsOnPeople) {
 }
 
 // People walk through the long loop (synth long_loop_people: once around the room, then its
-// first metres again), and the front end runs (`sdo`). Without loop closing the two visits of
-// the start end 15 cm apart and the ATE is 56 mm; with it the revisit is recognised on static
-// points only (the people's features carry dynamic labels and never vote) and the ATE falls to
-// 21 mm (measured at 797758c). The run without closing is not repeated here (it is the suite's
-// costliest run): the bar is half of its measured ATE, and SlamLoopClosing shows on the same path
-// that without closing the drift stays above 30 mm.
+// first metres again), and the front end runs (`sdo`). Without loop closing the ATE is 121 mm;
+// with it the revisit is recognised on static points only (the people's features carry dynamic
+// labels and never vote) and the ATE falls to 22 mm (measured 2026-11-27, with the walk made
+// 700 frames long). The run without closing is not repeated here (it is the suite's costliest
+// run): the bar, 30 mm, is a quarter of its measured ATE, and SlamLoopClosing shows on the same
+// path that without closing the drift stays above 30 mm.
 TEST(PipelineLoopClosing, PeopleWalkingThroughTheLoopDoNotStopItClosing) {
   testing::TempDir dir;
   WriteScenario("long_loop_people", dir, synth::kLongLoopFrames);
@@ -296,12 +296,12 @@ TEST(PipelineLoopClosing, PeopleWalkingThroughTheLoopDoNotStopItClosing) {
   ASSERT_TRUE(with.evaluation);
   const double ate_with = with.evaluation->ate.translation.rmse;
   std::cout << "long loop with people, sdo: ATE with closing " << ate_with
-            << " (56 mm without), loops " << with.loops.size() << '\n';
+            << " (121 mm without), loops " << with.loops.size() << '\n';
   EXPECT_EQ(with.tracked, static_cast<size_t>(synth::kLongLoopFrames));
   ASSERT_EQ(with.loops.size(), 1u);
   EXPECT_GE(with.loops[0].frame_index, static_cast<size_t>(synth::kLongLoopFrames) * 4 / 5);
   EXPECT_LE(with.loops[0].loop_frame_index, static_cast<size_t>(synth::kLongLoopFrames) / 5);
-  EXPECT_LE(ate_with, 0.5 * 0.056);
+  EXPECT_LE(ate_with, 0.030);
   // loops.csv holds it for the user.
   const std::string log = testing::ReadText(dir / "with" / "loops.csv");
   EXPECT_NE(log.find(std::to_string(with.loops[0].frame_index) + "," +

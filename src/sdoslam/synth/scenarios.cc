@@ -128,7 +128,7 @@ SceneObject AlongsideBox(uint16_t id, CameraMotion motion, double duration, cons
 // all the way round, walked anticlockwise from the middle of its far side (facing the desks).
 constexpr double kLongLoopCentreX = 0.0, kLongLoopCentreY = -0.6;
 constexpr double kLongLoopRadiusX = 1.5, kLongLoopRadiusY = 1.2;
-constexpr double kLongLoopRetrace = 0.4;  // metres walked again after the lap: about 1.7 s
+constexpr double kLongLoopRetrace = 0.8;  // metres walked again after the lap: about 2.8 s
 constexpr double kLongLoopRamp = 1.5;     // seconds to start walking and to stop
 constexpr int kLongLoopSamples = 4096;
 // The long loop's depth is up to 4 % too far towards the image corners (exact at the centre), as

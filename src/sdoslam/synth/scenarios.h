@@ -26,7 +26,7 @@ Eigen::Isometry3d CameraPoseAt(CameraMotion motion, double t, double duration);
 // along its first metres again, so that the last seconds see again what the first saw.
 //
 // The frames at 30 Hz it is made for (about 0.45 m/s); fewer walk faster than a hand-held camera.
-inline constexpr int kLongLoopFrames = 650;
+inline constexpr int kLongLoopFrames = 700;
 double LongLoopLength();   // one lap, metres
 double LongLoopRetrace();  // metres walked again after the lap
 // Arc length walked by time t of a sequence of `duration` seconds; starts and ends at rest.

@@ -246,8 +246,8 @@ TEST(Scenarios, LongLoopIsAClosedHandHeldWalkThatEndsSeeingItsStart) {
     EXPECT_GT(nearest, 0.7) << "frame " << k;
   }
 
-  // The lap ends on the start pose within its last 3 s; from there to the end the camera stays
-  // near the start and sees most of what the first frame saw (for place recognition).
+  // The lap ends on the start pose within its last 3 s; from there to the end the camera walks
+  // the first stretch again and sees most of what the first 3 s saw (for place recognition).
   int back = -1;
   for (int k = last - 90; k <= last; ++k) {
     if ((pose(k).translation() - start.translation()).norm() < 0.01 &&
@@ -257,12 +257,19 @@ TEST(Scenarios, LongLoopIsAClosedHandHeldWalkThatEndsSeeingItsStart) {
     }
   }
   ASSERT_GE(back, 0) << "the lap does not end on the start pose in the last 3 s";
-  EXPECT_GE(last - back, 45);  // at least 1.5 s of the first stretch walked again
-  EXPECT_LT((pose(last).translation() - start.translation()).norm(), 0.5);
-  EXPECT_LT(angle(pose(last), start) * 180 / M_PI, 10.0);
+  // At least 2 s of the first stretch walked again: a keyframe or two more than one lap's drift
+  // needs, so that the loop is still found when a busy machine shifts the keyframes.
+  EXPECT_GE(last - back, 60);
+  EXPECT_LT((pose(last).translation() - start.translation()).norm(), LongLoopRetrace() + 0.05);
   EXPECT_GT(SharedView(scenario.scene, start, pose(back), camera), 0.98);
-  for (int k = back - 30; k <= last; k += 15) {
+  for (int k = back - 30; k <= back + 30; k += 15) {
     EXPECT_GT(SharedView(scenario.scene, start, pose(k), camera), 0.6) << "frame " << k;
+  }
+  for (int k = back; k <= last; k += 15) {
+    double best = 0;
+    for (int j = 0; j <= 90; j += 15)
+      best = std::max(best, SharedView(scenario.scene, pose(j), pose(k), camera));
+    EXPECT_GT(best, 0.6) << "frame " << k;
   }
   // Halfway round, the camera looks at the other side of the room.
   EXPECT_LT(SharedView(scenario.scene, start, pose(last / 2), camera), 0.05);
