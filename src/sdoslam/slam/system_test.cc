@@ -268,6 +268,54 @@ TEST(SlamRobustness, AFrameTheCheckCannotJudgeIsNotMadeAKeyFrame) {
   for (size_t i = 0; i < 60; ++i) EXPECT_EQ(short_rule[i].keyframe, short_without[i].keyframe) << i;
 }
 
+// tracking.keyframes_min_static_samples (off by default): with the consistency check on, a
+// frame whose pose few of its grid samples confirm (here the depth drops out for five frames,
+// so no sample can be measured, while the features still track by their image positions) is
+// not made a keyframe, though the keyframe rule asks for one. Where the static world fills the
+// view the rule changes no keyframe.
+TEST(SlamRobustness, AFrameWhosePoseLittleOfTheStaticViewConfirmsIsNotMadeAKeyFrame) {
+  testing::TempDir dir;
+  RenderStaticRoom(dir, synth::CameraMotion::kHalfsphere, 60);
+  const TumDataset dataset(dir / "seq", synth::SyntheticCamera());
+  const cv::Mat no_segments(120, 160, CV_32SC1, cv::Scalar(-1));
+  auto run = [&](int min_samples, bool drop_depth) {
+    SlamOptions options;
+    options.tracking.keyframes_min_static_samples = min_samples;
+    options.tracking.reference_ratio = 0.99;  // nearly every frame asks for a keyframe
+    System slam(synth::SyntheticCamera(), options);
+    std::vector<TrackingResult> results;
+    for (size_t i = 0; i < 60; ++i) {
+      RgbdFrame frame = dataset.Load(i);
+      if (drop_depth && i >= 40 && i < 45) frame.depth.setTo(0.0f);
+      results.push_back(
+          slam.TrackRgbd(i, frame.timestamp, frame.bgr, frame.depth, nullptr, {}, no_segments));
+    }
+    const AteResult ate =
+        ComputeAte(ReadTumTrajectory(dir / "seq" / "groundtruth.txt"), slam.CameraTrajectory());
+    EXPECT_LE(ate.translation.rmse, 0.01) << min_samples;
+    for (size_t i = 0; i < 60; ++i) EXPECT_EQ(results[i].state, TrackingState::kOk) << i;
+    return results;
+  };
+  const int min_static_samples = 10;
+  const std::vector<TrackingResult> rule = run(min_static_samples, true);
+  const std::vector<TrackingResult> without = run(0, true);
+  // No sample has depth on the frames without it, nor on the next five, whose samples are
+  // tracked back to them: none of these is a keyframe, where without the rule some are.
+  int asked = 0;
+  for (size_t i = 40; i < 50; ++i) {
+    EXPECT_LT(rule[i].check_static_samples, min_static_samples) << i;
+    EXPECT_FALSE(rule[i].keyframe) << i;
+    asked += without[i].keyframe;
+  }
+  EXPECT_GT(asked, 0);
+  EXPECT_GE(rule[50].check_static_samples, min_static_samples);
+  // The whole view static and in depth: the same keyframes with the rule and without it.
+  const std::vector<TrackingResult> full_rule = run(min_static_samples, false);
+  const std::vector<TrackingResult> full_without = run(0, false);
+  for (size_t i = 0; i < 60; ++i) EXPECT_EQ(full_rule[i].keyframe, full_without[i].keyframe) << i;
+  EXPECT_GE(full_rule[45].check_static_samples, min_static_samples);
+}
+
 // A person passing close fills the view for a few frames, then uncovers it from one side: on
 // the first frame back only the left 40 % of the room is in view. The camera has hardly moved,
 // so the map is searched by projection around the pose carried on from before. Here the

@@ -141,7 +141,12 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
       has_velocity_ = true;
     }
     frames_lost_ = 0;
+    // Enough of the static world in view to vouch for the pose (see TrackerOptions).
+    const bool static_view_vouches =
+        consistency == nullptr || !options_.consistency.static_motion.enabled ||
+        result.check_static_samples >= options_.keyframes_min_static_samples;
     if (mapping_accepts && (judged || !options_.keyframes_only_from_judged_frames) &&
+        static_view_vouches &&
         NeedKeyFrame(options_, frame,
                      {.inliers = result.inliers,
                       .reference_matches = ReferenceMatches(*map_, *reference_),

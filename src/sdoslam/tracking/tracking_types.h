@@ -50,6 +50,15 @@ struct TrackerOptions {
   // made a keyframe, as the map would take in whatever the front end missed on the mover that
   // filled the view. The next frame is judged (over a shorter baseline) and may be one.
   bool keyframes_only_from_judged_frames = true;
+  // With the check's static motion on, a frame whose pose explains fewer than this many of its
+  // grid samples (tracked back consistency.frame_gap frames; consistency.static_motion) is never
+  // made a keyframe: so little of the static world is in view, with depth, that nothing vouches
+  // for the pose (a person a few decimetres from the lens), and a keyframe would write its error
+  // into the map that the frames after it, and the relocalization after the loss, stand on.
+  // 0: off, the default for now: 10 removed the threaded person_fills_view failures, but it
+  // also vetoed the synthetic loop's keyframe right after a relocalization, whose samples are
+  // few because its past frame was covered (README: Robustness to small perturbations).
+  int keyframes_min_static_samples = 0;
   SceneFlowOptions consistency;  // the scene-flow consistency check and map hygiene
   void Check(const std::string& path = "tracking.") const;  // Error names path + setting
   // Every setting, as its config key (core/config.h: ReadFields, WriteFields).
@@ -67,6 +76,7 @@ struct TrackerOptions {
     visit("relocalization_prior_frames", o.relocalization_prior_frames);
     visit("relocalization_radius_factor", o.relocalization_radius_factor);
     visit("keyframes_only_from_judged_frames", o.keyframes_only_from_judged_frames);
+    visit("keyframes_min_static_samples", o.keyframes_min_static_samples);
     visit("consistency", o.consistency);
   }
 };
