@@ -269,16 +269,18 @@ TEST(SlamRobustness, AFrameTheCheckCannotJudgeIsNotMadeAKeyFrame) {
 }
 
 // tracking.keyframes_min_static_samples (off by default): with the consistency check on, a
-// frame whose pose few of its grid samples confirm (here the depth drops out for five frames,
-// so no sample can be measured, while the features still track by their image positions) is
-// not made a keyframe, though the keyframe rule asks for one. Where the static world fills the
-// view the rule changes no keyframe.
+// frame whose pose few of its grid samples confirm, after a frame of which the same was true
+// (here the depth drops out for five frames, so no sample can be measured, while the features
+// still track by their image positions), is not made a keyframe, though the keyframe rule asks
+// for one. One such frame alone is no evidence (its samples are tracked back to a frame that
+// may have been covered): one frame without depth changes no keyframe, nor does a view that the
+// static world fills.
 TEST(SlamRobustness, AFrameWhosePoseLittleOfTheStaticViewConfirmsIsNotMadeAKeyFrame) {
   testing::TempDir dir;
   RenderStaticRoom(dir, synth::CameraMotion::kHalfsphere, 60);
   const TumDataset dataset(dir / "seq", synth::SyntheticCamera());
   const cv::Mat no_segments(120, 160, CV_32SC1, cv::Scalar(-1));
-  auto run = [&](int min_samples, bool drop_depth) {
+  auto run = [&](int min_samples, size_t drop_from, size_t drop_to) {
     SlamOptions options;
     options.tracking.keyframes_min_static_samples = min_samples;
     options.tracking.reference_ratio = 0.99;  // nearly every frame asks for a keyframe
@@ -286,7 +288,7 @@ TEST(SlamRobustness, AFrameWhosePoseLittleOfTheStaticViewConfirmsIsNotMadeAKeyFr
     std::vector<TrackingResult> results;
     for (size_t i = 0; i < 60; ++i) {
       RgbdFrame frame = dataset.Load(i);
-      if (drop_depth && i >= 40 && i < 45) frame.depth.setTo(0.0f);
+      if (i >= drop_from && i < drop_to) frame.depth.setTo(0.0f);
       results.push_back(
           slam.TrackRgbd(i, frame.timestamp, frame.bgr, frame.depth, nullptr, {}, no_segments));
     }
@@ -297,21 +299,41 @@ TEST(SlamRobustness, AFrameWhosePoseLittleOfTheStaticViewConfirmsIsNotMadeAKeyFr
     return results;
   };
   const int min_static_samples = 10;
-  const std::vector<TrackingResult> rule = run(min_static_samples, true);
-  const std::vector<TrackingResult> without = run(0, true);
+  const std::vector<TrackingResult> rule = run(min_static_samples, 40, 45);
+  const std::vector<TrackingResult> without = run(0, 40, 45);
   // No sample has depth on the frames without it, nor on the next five, whose samples are
-  // tracked back to them: none of these is a keyframe, where without the rule some are.
+  // tracked back to them: none of these after the first is a keyframe, where without the rule
+  // some are.
   int asked = 0;
   for (size_t i = 40; i < 50; ++i) {
     EXPECT_LT(rule[i].check_static_samples, min_static_samples) << i;
+    if (i == 40) continue;
     EXPECT_FALSE(rule[i].keyframe) << i;
     asked += without[i].keyframe;
   }
   EXPECT_GT(asked, 0);
   EXPECT_GE(rule[50].check_static_samples, min_static_samples);
+  // One frame without depth: it and the frame whose samples are tracked back to it have few,
+  // each after a frame with many. The same keyframes with the rule and without it.
+  const std::vector<TrackingResult> once_rule = run(min_static_samples, 40, 41);
+  const std::vector<TrackingResult> once_without = run(0, 40, 41);
+  int few = 0, few_made = 0;
+  for (size_t i = 0; i < 60; ++i) {
+    EXPECT_EQ(once_rule[i].keyframe, once_without[i].keyframe) << i;
+    // (Frame 0 starts the map: it has no past frame to sample.)
+    if (i > 0 && once_rule[i].check_static_samples < min_static_samples) {
+      ++few;
+      few_made += once_rule[i].keyframe;
+      EXPECT_GE(once_rule[i - 1].check_static_samples, min_static_samples) << i;
+    }
+  }
+  std::cout << "one frame without depth: " << few << " frames with few samples, " << few_made
+            << " of them keyframes\n";
+  EXPECT_GE(few, 2);
+  EXPECT_GT(few_made, 0);
   // The whole view static and in depth: the same keyframes with the rule and without it.
-  const std::vector<TrackingResult> full_rule = run(min_static_samples, false);
-  const std::vector<TrackingResult> full_without = run(0, false);
+  const std::vector<TrackingResult> full_rule = run(min_static_samples, 0, 0);
+  const std::vector<TrackingResult> full_without = run(0, 0, 0);
   for (size_t i = 0; i < 60; ++i) EXPECT_EQ(full_rule[i].keyframe, full_without[i].keyframe) << i;
   EXPECT_GE(full_rule[45].check_static_samples, min_static_samples);
 }

@@ -141,10 +141,13 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
       has_velocity_ = true;
     }
     frames_lost_ = 0;
-    // Enough of the static world in view to vouch for the pose (see TrackerOptions).
-    const bool static_view_vouches =
-        consistency == nullptr || !options_.consistency.static_motion.enabled ||
-        result.check_static_samples >= options_.keyframes_min_static_samples;
+    // Enough of the static world in view to vouch for the pose, on this frame or the one
+    // before it (see TrackerOptions).
+    const bool few_static_samples =
+        consistency != nullptr && options_.consistency.static_motion.enabled &&
+        result.check_static_samples < options_.keyframes_min_static_samples;
+    const bool static_view_vouches = !few_static_samples || !last_few_static_samples_;
+    last_few_static_samples_ = few_static_samples;
     if (mapping_accepts && (judged || !options_.keyframes_only_from_judged_frames) &&
         static_view_vouches &&
         NeedKeyFrame(options_, frame,
