@@ -268,21 +268,28 @@ TEST(SlamRobustness, AFrameTheCheckCannotJudgeIsNotMadeAKeyFrame) {
   for (size_t i = 0; i < 60; ++i) EXPECT_EQ(short_rule[i].keyframe, short_without[i].keyframe) << i;
 }
 
-// tracking.keyframes_min_static_samples (off by default): with the consistency check on, a
-// frame whose pose few of its grid samples confirm, after a frame of which the same was true
-// (here the depth drops out for five frames, so no sample can be measured, while the features
-// still track by their image positions), is not made a keyframe, though the keyframe rule asks
-// for one. One such frame alone is no evidence (its samples are tracked back to a frame that
-// may have been covered): one frame without depth changes no keyframe, nor does a view that the
-// static world fills.
+// tracking.keyframes_min_static_samples and keyframes_min_static_features: with the consistency
+// check on, a frame whose view of the static world is narrow (few grid samples confirm its pose,
+// and few features labelled static have depth), after a frame of which the same was true, is not
+// made a keyframe, though the keyframe rule asks for one. Here the depth drops out for five
+// frames, so no sample can be measured, while the features still track by their image positions.
+// The samples alone are not enough: the five frames after the gap have few (they are tracked
+// back into it) but a full static view in depth. Nor is one narrow frame: one frame without
+// depth changes no keyframe. A view that the static world fills changes none either.
 TEST(SlamRobustness, AFrameWhosePoseLittleOfTheStaticViewConfirmsIsNotMadeAKeyFrame) {
   testing::TempDir dir;
   RenderStaticRoom(dir, synth::CameraMotion::kHalfsphere, 60);
   const TumDataset dataset(dir / "seq", synth::SyntheticCamera());
   const cv::Mat no_segments(120, 160, CV_32SC1, cv::Scalar(-1));
-  auto run = [&](int min_samples, size_t drop_from, size_t drop_to) {
+  const TrackerOptions defaults;
+  const int min_samples = defaults.keyframes_min_static_samples;
+  ASSERT_GT(min_samples, 0);
+  ASSERT_GT(defaults.keyframes_min_static_features, 0);
+  // min_samples 0: the rule off; min_features 0: the defaults.
+  auto run = [&](int samples, int features, size_t drop_from, size_t drop_to) {
     SlamOptions options;
-    options.tracking.keyframes_min_static_samples = min_samples;
+    options.tracking.keyframes_min_static_samples = samples;
+    if (features > 0) options.tracking.keyframes_min_static_features = features;
     options.tracking.reference_ratio = 0.99;  // nearly every frame asks for a keyframe
     System slam(synth::SyntheticCamera(), options);
     std::vector<TrackingResult> results;
@@ -294,37 +301,48 @@ TEST(SlamRobustness, AFrameWhosePoseLittleOfTheStaticViewConfirmsIsNotMadeAKeyFr
     }
     const AteResult ate =
         ComputeAte(ReadTumTrajectory(dir / "seq" / "groundtruth.txt"), slam.CameraTrajectory());
-    EXPECT_LE(ate.translation.rmse, 0.01) << min_samples;
+    EXPECT_LE(ate.translation.rmse, 0.01) << samples << " " << features;
     for (size_t i = 0; i < 60; ++i) EXPECT_EQ(results[i].state, TrackingState::kOk) << i;
     return results;
   };
-  const int min_static_samples = 10;
-  const std::vector<TrackingResult> rule = run(min_static_samples, 40, 45);
-  const std::vector<TrackingResult> without = run(0, 40, 45);
+  // Every frame's features counted as few (1,000 features are extracted): the samples decide.
+  const int any = 1001;
+  const std::vector<TrackingResult> rule = run(min_samples, any, 40, 45);
+  const std::vector<TrackingResult> without = run(0, 0, 40, 45);
   // No sample has depth on the frames without it, nor on the next five, whose samples are
   // tracked back to them: none of these after the first is a keyframe, where without the rule
-  // some are.
+  // some are (those after the gap).
   int asked = 0;
   for (size_t i = 40; i < 50; ++i) {
-    EXPECT_LT(rule[i].check_static_samples, min_static_samples) << i;
+    EXPECT_LT(rule[i].check_static_samples, min_samples) << i;
     if (i == 40) continue;
     EXPECT_FALSE(rule[i].keyframe) << i;
     asked += without[i].keyframe;
   }
   EXPECT_GT(asked, 0);
-  EXPECT_GE(rule[50].check_static_samples, min_static_samples);
+  EXPECT_GE(rule[50].check_static_samples, min_samples);
+  // With the defaults the frames after the gap see the static room in depth: the same keyframes
+  // as without the rule, among them frames with few samples.
+  const std::vector<TrackingResult> both = run(min_samples, 0, 40, 45);
+  int made_with_few_samples = 0;
+  for (size_t i = 0; i < 60; ++i) {
+    EXPECT_EQ(both[i].keyframe, without[i].keyframe) << i;
+    made_with_few_samples +=
+        i > 0 && both[i].keyframe && both[i].check_static_samples < min_samples;
+  }
+  EXPECT_GT(made_with_few_samples, 0);
   // One frame without depth: it and the frame whose samples are tracked back to it have few,
   // each after a frame with many. The same keyframes with the rule and without it.
-  const std::vector<TrackingResult> once_rule = run(min_static_samples, 40, 41);
-  const std::vector<TrackingResult> once_without = run(0, 40, 41);
+  const std::vector<TrackingResult> once_rule = run(min_samples, any, 40, 41);
+  const std::vector<TrackingResult> once_without = run(0, 0, 40, 41);
   int few = 0, few_made = 0;
   for (size_t i = 0; i < 60; ++i) {
     EXPECT_EQ(once_rule[i].keyframe, once_without[i].keyframe) << i;
     // (Frame 0 starts the map: it has no past frame to sample.)
-    if (i > 0 && once_rule[i].check_static_samples < min_static_samples) {
+    if (i > 0 && once_rule[i].check_static_samples < min_samples) {
       ++few;
       few_made += once_rule[i].keyframe;
-      EXPECT_GE(once_rule[i - 1].check_static_samples, min_static_samples) << i;
+      EXPECT_GE(once_rule[i - 1].check_static_samples, min_samples) << i;
     }
   }
   std::cout << "one frame without depth: " << few << " frames with few samples, " << few_made
@@ -332,10 +350,10 @@ TEST(SlamRobustness, AFrameWhosePoseLittleOfTheStaticViewConfirmsIsNotMadeAKeyFr
   EXPECT_GE(few, 2);
   EXPECT_GT(few_made, 0);
   // The whole view static and in depth: the same keyframes with the rule and without it.
-  const std::vector<TrackingResult> full_rule = run(min_static_samples, 0, 0);
-  const std::vector<TrackingResult> full_without = run(0, 0, 0);
+  const std::vector<TrackingResult> full_rule = run(min_samples, any, 0, 0);
+  const std::vector<TrackingResult> full_without = run(0, 0, 0, 0);
   for (size_t i = 0; i < 60; ++i) EXPECT_EQ(full_rule[i].keyframe, full_without[i].keyframe) << i;
-  EXPECT_GE(full_rule[45].check_static_samples, min_static_samples);
+  EXPECT_GE(full_rule[45].check_static_samples, min_samples);
 }
 
 // A person passing close fills the view for a few frames, then uncovers it from one side: on

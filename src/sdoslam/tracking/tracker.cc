@@ -9,6 +9,19 @@
 #include "sdoslam/tracking/local_map.h"
 
 namespace sdoslam {
+namespace {
+
+// Features labelled static (by the front end and the check) that have depth.
+int StaticFeaturesWithDepth(const Frame& frame) {
+  int count = 0;
+  for (size_t i = 0; i < frame.size(); ++i) {
+    const int feature = static_cast<int>(i);
+    count += frame.IsStatic(feature) && frame.HasDepth(feature);
+  }
+  return count;
+}
+
+}  // namespace
 
 Tracker::Tracker(Map* map, const TrackerOptions& options, KeyFramePlaces* places)
     : map_(map),
@@ -143,11 +156,12 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
     frames_lost_ = 0;
     // Enough of the static world in view to vouch for the pose, on this frame or the one
     // before it (see TrackerOptions).
-    const bool few_static_samples =
+    const bool narrow_static_view =
         consistency != nullptr && options_.consistency.static_motion.enabled &&
-        result.check_static_samples < options_.keyframes_min_static_samples;
-    const bool static_view_vouches = !few_static_samples || !last_few_static_samples_;
-    last_few_static_samples_ = few_static_samples;
+        result.check_static_samples < options_.keyframes_min_static_samples &&
+        StaticFeaturesWithDepth(frame) < options_.keyframes_min_static_features;
+    const bool static_view_vouches = !narrow_static_view || !last_narrow_static_view_;
+    last_narrow_static_view_ = narrow_static_view;
     if (mapping_accepts && (judged || !options_.keyframes_only_from_judged_frames) &&
         static_view_vouches &&
         NeedKeyFrame(options_, frame,

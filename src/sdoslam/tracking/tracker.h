@@ -97,9 +97,8 @@ class Tracker {
   size_t last_keyframe_frame_ = 0;  // frame index of the last keyframe
   bool has_velocity_ = false;
   int frames_lost_ = 0;  // frames since the last tracked one
-  // Whether the last frame, tracked, had fewer static samples than
-  // keyframes_min_static_samples.
-  bool last_few_static_samples_ = false;
+  // Whether the last frame, tracked, had a narrow view of the static world (TrackerOptions).
+  bool last_narrow_static_view_ = false;
   Eigen::Isometry3d velocity_ = Eigen::Isometry3d::Identity();
   std::vector<std::unique_ptr<MapPoint>> temporary_points_;
   std::vector<TrajectoryEntry> trajectory_;

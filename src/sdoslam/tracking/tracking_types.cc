@@ -34,6 +34,8 @@ void TrackerOptions::Check(const std::string& path) const {
     throw Error(path + "relocalization_radius_factor must be >= 1");
   if (keyframes_min_static_samples < 0)
     throw Error(path + "keyframes_min_static_samples must be >= 0");
+  if (keyframes_min_static_features < 0)
+    throw Error(path + "keyframes_min_static_features must be >= 0");
   consistency.Check(path + "consistency.");
 }
 

@@ -50,20 +50,21 @@ struct TrackerOptions {
   // made a keyframe, as the map would take in whatever the front end missed on the mover that
   // filled the view. The next frame is judged (over a shorter baseline) and may be one.
   bool keyframes_only_from_judged_frames = true;
-  // With the check's static motion on, a frame whose pose explains fewer than this many of its
-  // grid samples (tracked back consistency.frame_gap frames; consistency.static_motion), after a
-  // tracked frame of which the same was true, is never made a keyframe: so little of the static
-  // world is in view, with depth, that nothing vouches for the pose (a person a few decimetres
-  // from the lens), and a keyframe would write its error into the map that the frames after it,
-  // and the relocalization after the loss, stand on. One such frame alone is no evidence: its
-  // samples may be few because the frame they are tracked back to was covered (the synthetic
-  // loop, two frames after its relocalization). 0: off, the default: with 15 the 15
-  // real-background plays and the unseen person_fills_view seeds were better and threaded
-  // person_fills_view runs no longer failed, but on the long loop with people the count stays
-  // under 15 for 70 frames of a view full of the static room (the check's samples, not the
-  // features, are few there), no keyframe was made and tracking was lost for good (README:
-  // Robustness to small perturbations).
-  int keyframes_min_static_samples = 0;
+  // With the check's static motion on, a frame's view of the static world is narrow when fewer
+  // than keyframes_min_static_samples of its grid samples confirm its pose (tracked back
+  // consistency.frame_gap frames; consistency.static_motion) and fewer than
+  // keyframes_min_static_features of its features labelled static have depth: so little of the
+  // static world is in view that nothing vouches for the pose (a person a few decimetres from the
+  // lens). A narrow frame after a narrow tracked frame is never made a keyframe, which would
+  // write its error into the map that the frames after it, and the relocalization after the
+  // loss, stand on. Both measures, because each alone is fooled: the samples are few wherever the
+  // check cannot track or explain them (70 frames of the long loop with people, a view full of
+  // the static room, 626 static features with depth or more), and features labelled static may
+  // lie on the person. Two frames, because one is no evidence: the synthetic loop's frame two
+  // after its relocalization has 3 samples, its past frame having been covered. Either 0 turns
+  // the rule off (README: Robustness to small perturbations).
+  int keyframes_min_static_samples = 15;
+  int keyframes_min_static_features = 300;
   SceneFlowOptions consistency;  // the scene-flow consistency check and map hygiene
   void Check(const std::string& path = "tracking.") const;  // Error names path + setting
   // Every setting, as its config key (core/config.h: ReadFields, WriteFields).
@@ -82,6 +83,7 @@ struct TrackerOptions {
     visit("relocalization_radius_factor", o.relocalization_radius_factor);
     visit("keyframes_only_from_judged_frames", o.keyframes_only_from_judged_frames);
     visit("keyframes_min_static_samples", o.keyframes_min_static_samples);
+    visit("keyframes_min_static_features", o.keyframes_min_static_features);
     visit("consistency", o.consistency);
   }
 };
