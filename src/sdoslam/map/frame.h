@@ -47,6 +47,8 @@ class Frame {
   // Features on things judged dynamic (label != 0) are kept for drawing and evaluation, but
   // tracking and mapping never match them nor make map points from them.
   bool IsStatic(int i) const { return label[static_cast<size_t>(i)] == 0; }
+  // What tracking and mapping build on: a static feature with depth.
+  bool IsStaticWithDepth(int i) const { return IsStatic(i) && HasDepth(i); }
   // Labels each feature from `label_image` (CV_8U, image size, 0 = static) at its detected
   // position; FeaturesInArea leaves the non-static ones out. An empty image clears all labels.
   // Call before tracking the frame.

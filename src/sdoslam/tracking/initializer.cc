@@ -9,8 +9,7 @@ KeyFrame* InitializeMap(Map* map, const TrackerOptions& options, Frame& frame) {
   frame.T_camera_world = Eigen::Isometry3d::Identity();  // the first camera defines the world
   KeyFrame* kf = map->AddKeyFrame(frame);
   for (size_t i = 0; i < kf->frame.size(); ++i) {
-    if (!kf->frame.HasDepth(static_cast<int>(i)) || !kf->frame.IsStatic(static_cast<int>(i)))
-      continue;
+    if (!kf->frame.IsStaticWithDepth(static_cast<int>(i))) continue;
     MapPoint* p = map->AddMapPoint(kf->frame.UnprojectWorld(static_cast<int>(i)), kf);
     map->AddObservation(p, kf, static_cast<int>(i));
     p->UpdateFromObservations();

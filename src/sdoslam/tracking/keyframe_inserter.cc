@@ -18,7 +18,7 @@ bool NeedKeyFrame(const TrackerOptions& options, const Frame& frame,
   const int reference_matches = input.reference_matches;
   int tracked_close = 0, untracked_close = 0;
   for (size_t i = 0; i < frame.size(); ++i) {
-    if (!frame.HasDepth(static_cast<int>(i)) || !frame.IsStatic(static_cast<int>(i)) ||
+    if (!frame.IsStaticWithDepth(static_cast<int>(i)) ||
         frame.depth[i] > frame.geometry->close_depth)
       continue;
     if (frame.map_points[i] != nullptr && !frame.outlier[i]) {
@@ -43,7 +43,7 @@ KeyFrame* CreateKeyFrame(Map* map, const TrackerOptions& options, Frame& frame) 
   // New close points from depth, nearest first; at least min_close_points of them.
   std::vector<std::pair<float, int>> by_depth;
   for (size_t i = 0; i < kf->frame.size(); ++i) {
-    if (kf->frame.HasDepth(static_cast<int>(i)) && kf->frame.IsStatic(static_cast<int>(i)))
+    if (kf->frame.IsStaticWithDepth(static_cast<int>(i)))
       by_depth.emplace_back(kf->frame.depth[i], static_cast<int>(i));
   }
   std::sort(by_depth.begin(), by_depth.end());

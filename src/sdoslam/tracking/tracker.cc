@@ -14,10 +14,7 @@ namespace {
 // Features labelled static (by the front end and the check) that have depth.
 int StaticFeaturesWithDepth(const Frame& frame) {
   int count = 0;
-  for (size_t i = 0; i < frame.size(); ++i) {
-    const int feature = static_cast<int>(i);
-    count += frame.IsStatic(feature) && frame.HasDepth(feature);
-  }
+  for (size_t i = 0; i < frame.size(); ++i) count += frame.IsStaticWithDepth(static_cast<int>(i));
   return count;
 }
 
@@ -193,7 +190,7 @@ void Tracker::MakeTemporaryPoints() {
   Frame& last = *last_frame_;
   std::vector<std::pair<float, int>> by_depth;
   for (size_t i = 0; i < last.size(); ++i) {
-    if (last.HasDepth(static_cast<int>(i)) && last.IsStatic(static_cast<int>(i)))
+    if (last.IsStaticWithDepth(static_cast<int>(i)))
       by_depth.emplace_back(last.depth[i], static_cast<int>(i));
   }
   std::sort(by_depth.begin(), by_depth.end());
