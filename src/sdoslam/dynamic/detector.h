@@ -53,15 +53,10 @@ class NoDetector : public Detector {
 struct HogDetectorOptions {
   int work_width = 320;
   double hit_threshold = 0.0;
-  // Pyramid step. 1.2, not 1.1: 7 levels become 4 at 320 px, and a call takes 8 ms instead of 14
-  // (one core, a TUM frame). The people HOG can see here are 256-450 px tall in the full image
-  // (2-3.5 m away); a step of 1.2 leaves a person up to 10 % off the window's size instead of 5 %,
-  // which costs HOG some recall on real people. That cost cannot be measured on any sequence at
-  // hand: HOG finds none of the rendered or composited people (0 of 108 whole people, every third
-  // frame of five synthetic scenarios at either step), and with 1.2 the 15 real-background plays,
-  // six unseen person_fills_view seeds and the 700-frame long_loop_people keep their trajectories
-  // bit for bit except swinging_boxes (a few of HOG's false boxes moved: 15.8 -> 15.9 mm summed).
-  // Threaded sdo on fr2_desk_50 gains 5-8 % in frames a second.
+  // Pyramid step. 1.2, not 1.1: 4 levels instead of 7 at 320 px, 8 ms a call instead of 14. A
+  // person may then be 10 % off the window's size instead of 5 %, a recall cost on real people
+  // that no sequence here can show (HOG boxes none of the rendered or composited people); the
+  // README's "HOG's pyramid step" has the measurements.
   double scale = 1.2;
   void Check(
       const std::string& path = "dynamic.detector.hog.") const;  // Error names path + setting
