@@ -125,6 +125,12 @@ LkPyramid BuildLkPyramid(const SceneFlowOptions& o, const cv::Mat& gray) {
   return pyramid;
 }
 
+cv::Mat LkPyramidImage(const LkPyramid& pyramid, int level) {
+  // BuildLkPyramid keeps the derivatives: image and derivatives alternate.
+  const size_t index = 2 * static_cast<size_t>(level);
+  return level >= 0 && index < pyramid.size() ? pyramid[index] : cv::Mat();
+}
+
 void TrackPointsBack(const SceneFlowOptions& o, const cv::Mat& current_gray,
                      const cv::Mat& previous_gray, const std::vector<cv::Point2f>& points,
                      std::vector<cv::Point2f>* previous_points, std::vector<uint8_t>* found,

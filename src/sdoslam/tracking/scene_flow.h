@@ -183,6 +183,10 @@ void TrackPointsBack(const SceneFlowOptions& options, const cv::Mat& current_gra
 using LkPyramid = std::vector<cv::Mat>;
 LkPyramid BuildLkPyramid(const SceneFlowOptions& options, const cv::Mat& gray);
 
+// The image of a BuildLkPyramid pyramid at `level` (0: the image itself; level L is cv::pyrDown
+// applied L times), or an empty image where the pyramid has no such level.
+cv::Mat LkPyramidImage(const LkPyramid& pyramid, int level);
+
 // TrackPointsBack on pyramids built by BuildLkPyramid with the same options: the same result.
 void TrackPointsBack(const SceneFlowOptions& options, const LkPyramid& current,
                      const LkPyramid& previous, const std::vector<cv::Point2f>& points,

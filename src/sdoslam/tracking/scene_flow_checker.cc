@@ -200,8 +200,8 @@ std::vector<MapPoint*> SceneFlowChecker::CheckSceneFlow(Frame& frame, const Cons
   std::vector<int> sample_segment;
   if (o.static_motion.enabled) {
     const StaticMotionOptions& so = o.static_motion;
-    const std::vector<cv::Point2f> samples =
-        map_lock.WithoutMapLock([&] { return GridCorners(so, input.gray, input.depth); });
+    const std::vector<cv::Point2f> samples = map_lock.WithoutMapLock(
+        [&] { return GridCorners(so, input.gray, input.depth, LkPyramidImage(current, 1)); });
     const std::vector<cv::Point2f> samples_undistorted = camera.UndistortPoints(samples);
     std::vector<cv::Point2f> sample_guesses;
     for (size_t s = 0; s < samples.size(); ++s) {

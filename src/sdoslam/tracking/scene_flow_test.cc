@@ -205,6 +205,26 @@ TEST(TrackPointsBack, OnKeptPyramidsMatchesOpenCvOnImagesAndOwnsTheImage) {
   EXPECT_GE(tracked, points.size() * 9 / 10);
 }
 
+// The pyramid's images are the image and cv::pyrDown of it, level after level, bit for bit
+// (GridCorners takes level 1 instead of halving the image again); past the top level, none.
+TEST(LkPyramidImage, IsTheImageHalvedLevelByLevel) {
+  cv::Mat image;
+  cv::resize(Texture(3), image, cv::Size(641, 479), 0, 0, cv::INTER_LINEAR);  // odd sizes
+  SceneFlowOptions o;
+  o.track_levels = 2;
+  const LkPyramid pyramid = BuildLkPyramid(o, image);
+  cv::Mat expected = image;
+  for (int level = 0; level <= o.track_levels; ++level) {
+    SCOPED_TRACE(level);
+    if (level > 0) cv::pyrDown(expected, expected);
+    const cv::Mat got = LkPyramidImage(pyramid, level);
+    ASSERT_EQ(got.size(), expected.size());
+    ASSERT_EQ(got.type(), CV_8UC1);
+    EXPECT_EQ(cv::norm(got, expected, cv::NORM_INF), 0.0);
+  }
+  EXPECT_TRUE(LkPyramidImage(pyramid, o.track_levels + 1).empty());
+}
+
 TEST(DepthCandidates, OffersBothSurfacesOfADepthEdge) {
   cv::Mat depth(20, 20, CV_32F, cv::Scalar(3.0f));
   depth(cv::Rect(0, 0, 10, 20)).setTo(1.2f);  // a near surface on the left half

@@ -80,8 +80,10 @@ struct StaticMotionResult {
 // The samples of an image: in each cell of the options' grid, its strongest corner (the minimal
 // eigenvalue of the gradient covariance, Shi–Tomasi), where that reaches min_corner_strength and
 // `depth` (CV_32F, 0 = none) has a value. Flat cells give none: Lucas–Kanade slides on them.
+// `half_gray`, where given, is cv::pyrDown(gray) made already (a Lucas–Kanade pyramid's first
+// level above the image), used at half resolution instead of halving `gray` again.
 std::vector<cv::Point2f> GridCorners(const StaticMotionOptions& options, const cv::Mat& gray,
-                                     const cv::Mat& depth);
+                                     const cv::Mat& depth, const cv::Mat& half_gray = cv::Mat());
 
 // Correspondences that `T_camera_world` reprojects within options.inlier_px.
 int CountMotionInliers(const StaticMotionOptions& options, const PinholeIntrinsics& intrinsics,

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <opencv2/imgproc.hpp>
 #include <random>
 #include <span>
 
@@ -163,6 +164,54 @@ TEST(GridCorners, SamplesSitOnCornersAtFullResolutionCoordinates) {
         for (const cv::Point2f& s : samples) nearest = std::min(nearest, cv::norm(s - c));
         EXPECT_LE(nearest, 4.0) << c;
       }
+    }
+  }
+}
+
+// On a random texture (ties: none), each cell's sample is where cv::minMaxLoc puts the cell's
+// strongest corner, at either resolution and with or without the halved image handed in.
+TEST(GridCorners, EachCellsSampleIsItsStrongestCorner) {
+  std::mt19937 rng(11);
+  cv::Mat noise(120, 160, CV_8U), gray;
+  for (int y = 0; y < noise.rows; ++y)
+    for (int x = 0; x < noise.cols; ++x) noise.at<uint8_t>(y, x) = static_cast<uint8_t>(rng());
+  cv::resize(noise, gray, cv::Size(640, 480), 0, 0, cv::INTER_CUBIC);
+  cv::Mat depth(480, 640, CV_32F, cv::Scalar(1.5f));
+  depth(cv::Rect(0, 0, 200, 100)).setTo(0.0f);    // no samples there
+  gray(cv::Rect(360, 280, 240, 160)).setTo(128);  // plain: cells too weak for a sample
+  cv::Mat half;
+  cv::pyrDown(gray, half);
+  for (bool half_resolution : {true, false}) {
+    SCOPED_TRACE(half_resolution ? "half resolution" : "full resolution");
+    StaticMotionOptions o;
+    o.half_resolution_corners = half_resolution;
+    const int step = half_resolution ? 2 : 1;
+    cv::Mat strength;
+    cv::cornerMinEigenVal(half_resolution ? half : gray, strength, half_resolution ? 3 : 5, 3);
+    std::vector<cv::Point2f> expected;
+    int weak = 0;
+    for (int gy = 0; gy < o.grid_rows; ++gy) {
+      for (int gx = 0; gx < o.grid_columns; ++gx) {
+        const cv::Rect cell(
+            cv::Point(gx * strength.cols / o.grid_columns, gy * strength.rows / o.grid_rows),
+            cv::Point((gx + 1) * strength.cols / o.grid_columns,
+                      (gy + 1) * strength.rows / o.grid_rows));
+        double strongest = 0;
+        cv::Point at;
+        cv::minMaxLoc(strength(cell), nullptr, &strongest, nullptr, &at);
+        if (strongest < o.min_corner_strength) {
+          ++weak;
+          continue;
+        }
+        const cv::Point p = step * (cell.tl() + at);
+        if (depth.at<float>(p) > 0) expected.emplace_back(p);
+      }
+    }
+    ASSERT_GT(weak, 0);
+    ASSERT_GT(expected.size(), 100u);
+    EXPECT_EQ(GridCorners(o, gray, depth), expected);
+    if (half_resolution) {
+      EXPECT_EQ(GridCorners(o, gray, depth, half), expected);
     }
   }
 }
