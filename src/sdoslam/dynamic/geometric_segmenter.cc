@@ -102,9 +102,9 @@ Segmentation GeometricSegmenter::Segment(const FrontEndFrame& frame) {
   }
 
   // The crease test below looks at every pixel's normal from several centres: each normal is
-  // turned towards the camera (the origin) once, and pixels without depth or without a finite
-  // normal are marked unusable once. The work images are continuous (allocated by create()), so
-  // the loops below index them as flat arrays.
+  // turned towards the camera (the origin) once, and the normal of a pixel without depth or
+  // without a finite normal is made unusable once. The work images are continuous (allocated by
+  // create()), so the loops below index them as flat arrays.
   CV_Assert(z.isContinuous() && points_.isContinuous() && normals_out_.isContinuous() &&
             edges.isContinuous());
   const int size = W * H;
@@ -112,10 +112,17 @@ Segmentation GeometricSegmenter::Segment(const FrontEndFrame& frame) {
   const cv::Vec3f* points = points_.ptr<cv::Vec3f>();
   cv::Vec3f* normals = normals_out_.ptr<cv::Vec3f>();
   uint8_t* edge = edges.ptr<uint8_t>();
-  usable_.resize(size);
+  // Unusable: NaN, which fails every comparison of the crease test below, so that one
+  // comparison says both "usable" and "sharp" and a flat surface (the common case) is decided by
+  // a dot product alone (a look-up table of usable pixels before: perf had the test at a third
+  // of the segmenter's own time on real frames, most of it mispredicted branches).
+  const float nan = std::numeric_limits<float>::quiet_NaN();
   for (int i = 0; i < size; ++i) {
-    usable_[i] = zf[i] > 0 && Finite(normals[i]);
-    if (usable_[i] && normals[i].dot(points[i]) > 0) normals[i] = -normals[i];
+    if (!(zf[i] > 0 && Finite(normals[i]))) {
+      normals[i] = cv::Vec3f(nan, nan, nan);
+    } else if (normals[i].dot(points[i]) > 0) {
+      normals[i] = -normals[i];
+    }
   }
 
   // Creases: the pixels on either side of each pixel, concave_span_px away along a row, a column
@@ -131,9 +138,9 @@ Segmentation GeometricSegmenter::Segment(const FrontEndFrame& frame) {
   const int down_right = along_column + along_row, up_right = along_row - along_column;
   const auto concave = [&](int i, int offset) {
     const int a = i - offset, b = i + offset;
-    if (!usable_[a] || !usable_[b]) return false;
     const cv::Vec3f &na = normals[a], &nb = normals[b];
-    if (na.dot(nb) >= cos_concave) return false;
+    // Not sharp, or either normal NaN (unusable).
+    if (!(na.dot(nb) < cos_concave)) return false;
     // Concave: each lies on the front side of the other's tangent plane.
     const cv::Vec3f d = points[b] - points[a];
     return d.dot(na) > 0 && -d.dot(nb) > 0;

@@ -75,7 +75,6 @@ class GeometricSegmenter : public Segmenter {
   // Per-frame work buffers, kept so that their memory is reused from frame to frame.
   cv::Mat z_, bgr_, points_, normals_out_, inside_;
   cv::Mat components_, stats_, centroids_;
-  std::vector<uint8_t> usable_;    // the crease test may use the pixel's normal
   std::vector<cv::Vec3f> colour_;  // L*a*b*, where has_colour_
   std::vector<uint8_t> has_colour_;
   std::vector<int> candidates_;             // pixels the next growth pass looks at
