@@ -212,6 +212,10 @@ TEST(GridCorners, EachCellsSampleIsItsStrongestCorner) {
     EXPECT_EQ(GridCorners(o, gray, depth), expected);
     if (half_resolution) {
       EXPECT_EQ(GridCorners(o, gray, depth, half), expected);
+      // The image handed in is the one used: a mirrored one gives other samples.
+      cv::Mat mirrored;
+      cv::flip(half, mirrored, 1);
+      EXPECT_NE(GridCorners(o, gray, depth, mirrored), expected);
     }
   }
 }
