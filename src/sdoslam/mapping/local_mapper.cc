@@ -58,7 +58,10 @@ std::unique_lock<std::mutex> LockIf(std::mutex* mutex, double* wait_ms) {
 
 }  // namespace
 
-MappingResult LocalMapper::Process(KeyFrame* kf, std::mutex* map_mutex) {
+MappingResult LocalMapper::Process(KeyFrame* kf, std::mutex* map_mutex,
+                                   const std::atomic<bool>* new_keyframe_waiting) {
+  const std::atomic<bool>* stop =
+      options_.stop_ba_for_new_keyframe ? new_keyframe_waiting : nullptr;
   MappingResult result;
   bool adjust = false;
   {
@@ -79,7 +82,11 @@ MappingResult LocalMapper::Process(KeyFrame* kf, std::mutex* map_mutex) {
     adjust = map_->GoodKeyFrames() > 2;
   }
   auto start = std::chrono::steady_clock::now();
-  if (adjust) LocalBundleAdjustment(kf, &result, map_mutex);
+  if (adjust && stop != nullptr && stop->load()) {
+    result.ba_skipped = true;
+  } else if (adjust) {
+    LocalBundleAdjustment(kf, &result, map_mutex, stop);
+  }
   result.ba_ms = MsSince(start);
   auto lock = LockIf(map_mutex, &result.lock_wait_ms);
   start = std::chrono::steady_clock::now();
@@ -266,8 +273,8 @@ std::vector<KeyFrame*> LocalMapper::LocalWindow(KeyFrame* kf) const {
   return WithStrongestNeighbours(kf, options_.local_keyframes);
 }
 
-void LocalMapper::LocalBundleAdjustment(KeyFrame* kf, MappingResult* result,
-                                        std::mutex* map_mutex) {
+void LocalMapper::LocalBundleAdjustment(KeyFrame* kf, MappingResult* result, std::mutex* map_mutex,
+                                        const std::atomic<bool>* stop) {
   // Built under the lock, solved without it, written back under it to what still exists:
   // tracking goes on while Ceres runs. Only this thread frees points or culls keyframes, so the
   // pointers stay valid; a point or keyframe culled meanwhile by tracking is skipped.
@@ -354,7 +361,7 @@ void LocalMapper::LocalBundleAdjustment(KeyFrame* kf, MappingResult* result,
   if (lock.owns_lock()) lock.unlock();
   const auto solve_start = std::chrono::steady_clock::now();
   const std::vector<bool> inlier =
-      BundleAdjust(intrinsics, &ba, options_.bundle_adjustment, &result->ba);
+      BundleAdjust(intrinsics, &ba, options_.bundle_adjustment, &result->ba, stop);
   result->ba_solve_ms = MsSince(solve_start);
   if (map_mutex != nullptr) {
     const auto wait_start = std::chrono::steady_clock::now();

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <atomic>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -56,6 +57,12 @@ struct LocalMapperOptions {
   BundleAdjustmentOptions bundle_adjustment;
   // Threaded mapping (System): tracking makes no keyframe while this many wait for local mapping.
   int max_queued_keyframes = 3;
+  // Threaded mapping: a keyframe that arrives while local BA solves stops it after the iteration
+  // under way (its solution so far is kept), and a keyframe already waiting when the BA would
+  // start skips it, as ORB-SLAM2's local mapping does: the next keyframe's BA covers nearly the
+  // same window. Where movers hide much of the room sdo makes a keyframe every 3 frames and each
+  // BA took 40-60 ms of CPU (README, Threads and frame rate). Sequential runs never stop a BA.
+  bool stop_ba_for_new_keyframe = true;
   void Check(const std::string& path = "mapping.") const;  // Error names path + setting
   // Every setting, as its config key (core/config.h: ReadFields, WriteFields).
   template <class Options, class Visitor>
@@ -73,6 +80,7 @@ struct LocalMapperOptions {
     visit("max_ba_observations", o.max_ba_observations);
     visit("bundle_adjustment", o.bundle_adjustment);
     visit("max_queued_keyframes", o.max_queued_keyframes);
+    visit("stop_ba_for_new_keyframe", o.stop_ba_for_new_keyframe);
   }
 };
 
@@ -82,7 +90,8 @@ struct MappingResult {
   int triangulated_points = 0;
   int fused_points = 0;
   int local_keyframes = 0, fixed_keyframes = 0, local_points = 0;
-  BundleAdjustmentStats ba;  // observations and solver iterations of the local BA
+  BundleAdjustmentStats ba;  // observations, solver iterations and stop of the local BA
+  bool ba_skipped = false;   // threaded: a new keyframe was waiting, so no local BA was run
   int removed_observations = 0;
   int culled_keyframes = 0;
   int freed_points = 0;  // culled points whose memory was released
@@ -101,8 +110,11 @@ class LocalMapper {
   LocalMapper(Map* map, const LocalMapperOptions& options);
   // Processes a new keyframe. Keyframes must come in the order they were made. With
   // `map_mutex`, the map is locked while it is read or changed, but not while the bundle
-  // adjustment is solved (on a copy), so tracking goes on meanwhile.
-  MappingResult Process(KeyFrame* keyframe, std::mutex* map_mutex = nullptr);
+  // adjustment is solved (on a copy), so tracking goes on meanwhile. `new_keyframe_waiting`
+  // (threaded, with options.stop_ba_for_new_keyframe): raised by the caller when another
+  // keyframe is queued; it skips or stops the local BA.
+  MappingResult Process(KeyFrame* keyframe, std::mutex* map_mutex = nullptr,
+                        const std::atomic<bool>* new_keyframe_waiting = nullptr);
 
  private:
   void InsertKeyFrame(KeyFrame* keyframe);
@@ -111,7 +123,8 @@ class LocalMapper {
   int FuseWithNeighbours(KeyFrame* keyframe);
   // The keyframe and its most covisible neighbours, at most options_.local_keyframes of them.
   std::vector<KeyFrame*> LocalWindow(KeyFrame* keyframe) const;
-  void LocalBundleAdjustment(KeyFrame* keyframe, MappingResult* result, std::mutex* map_mutex);
+  void LocalBundleAdjustment(KeyFrame* keyframe, MappingResult* result, std::mutex* map_mutex,
+                             const std::atomic<bool>* stop);
   int CullKeyFrames(KeyFrame* keyframe);
   int CullCrowdedKeyFrames(KeyFrame* keyframe);
   struct Redundancy {

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <atomic>
 
 #include "sdoslam/matching/matcher.h"
 #include "sdoslam/synth/renderer.h"
@@ -75,8 +76,10 @@ TEST(LocalMapper, TriangulatesFeaturesWithoutDepthOntoTheTrueSurface) {
 }
 
 // Eight keyframes 4 cm apart in the rendered room, each tracked against the one before and
-// mapped with `options`; returns the last keyframe's mapping result.
-MappingResult MapEightViewsOfTheRoom(const LocalMapperOptions& options) {
+// mapped with `options`; returns the last keyframe's mapping result. `waiting`: handed to
+// Process as the flag of a keyframe waiting to be mapped.
+MappingResult MapEightViewsOfTheRoom(const LocalMapperOptions& options,
+                                     const std::atomic<bool>* waiting = nullptr) {
   const Camera camera(synth::SyntheticCamera());
   const OrbExtractor extractor(OrbOptions{});
   auto geometry = std::make_shared<FrameGeometry>(camera, extractor, 40.0, 3.0);
@@ -103,7 +106,7 @@ MappingResult MapEightViewsOfTheRoom(const LocalMapperOptions& options) {
       map.AddObservation(p, kf, static_cast<int>(f));
       p->UpdateFromObservations();
     }
-    result = mapper.Process(kf);
+    result = mapper.Process(kf, nullptr, waiting);
     previous = kf;
   }
   return result;
@@ -122,6 +125,26 @@ TEST(LocalMapper, TheLocalAdjustmentStaysWithinItsObservationBudget) {
   // The neighbours the budget leaves out of the window are held fixed, not forgotten.
   EXPECT_GE(bounded.fixed_keyframes, 1);
   EXPECT_GT(bounded.ba.iterations, 0);
+}
+
+// Threaded mapping skips the local BA while another keyframe waits (ORB-SLAM2's rule), unless
+// told not to; a lowered flag runs it as usual.
+TEST(LocalMapper, AKeyframeWaitingSkipsTheLocalAdjustmentUnlessTurnedOff) {
+  const std::atomic<bool> raised{true}, lowered{false};
+  const MappingResult skipped = MapEightViewsOfTheRoom(LocalMapperOptions{}, &raised);
+  EXPECT_TRUE(skipped.ba_skipped);
+  EXPECT_EQ(skipped.ba.iterations, 0);
+  EXPECT_EQ(skipped.ba.observations, 0);
+  const MappingResult adjusted = MapEightViewsOfTheRoom(LocalMapperOptions{}, &lowered);
+  EXPECT_FALSE(adjusted.ba_skipped);
+  EXPECT_FALSE(adjusted.ba.stopped);
+  EXPECT_GT(adjusted.ba.iterations, 2);
+  LocalMapperOptions never_stop;
+  never_stop.stop_ba_for_new_keyframe = false;
+  const MappingResult kept = MapEightViewsOfTheRoom(never_stop, &raised);
+  EXPECT_FALSE(kept.ba_skipped);
+  EXPECT_FALSE(kept.ba.stopped);
+  EXPECT_EQ(kept.ba.iterations, adjusted.ba.iterations);
 }
 
 // Keyframes that see the place from the same spot, none of them redundant by its points: each

@@ -189,9 +189,21 @@ void BundleAdjustmentOptions::Check(const std::string& path) const {
 }
 
 std::vector<bool> BundleAdjust(const PinholeIntrinsics& k, BundleAdjustmentProblem* ba,
-                               const BundleAdjustmentOptions& options,
-                               BundleAdjustmentStats* stats) {
+                               const BundleAdjustmentOptions& options, BundleAdjustmentStats* stats,
+                               const std::atomic<bool>* stop) {
   BundleAdjustmentStats counted;
+  // Ends the solve once `stop` is raised; Ceres then keeps the best solution so far.
+  struct StopWhenRaised : ceres::IterationCallback {
+    const std::atomic<bool>* stop;
+    bool* stopped;
+    ceres::CallbackReturnType operator()(const ceres::IterationSummary&) override {
+      if (stop == nullptr || !stop->load(std::memory_order_relaxed)) return ceres::SOLVER_CONTINUE;
+      *stopped = true;
+      return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+    }
+  } stop_when_raised;
+  stop_when_raised.stop = stop;
+  stop_when_raised.stopped = &counted.stopped;
   const auto free_poses = std::count(ba->pose_fixed.begin(), ba->pose_fixed.end(), false);
   std::vector<std::array<double, 7>> poses(ba->poses.size());
   for (size_t i = 0; i < poses.size(); ++i) PoseToParameters(ba->poses[i], poses[i].data());
@@ -227,6 +239,7 @@ std::vector<bool> BundleAdjust(const PinholeIntrinsics& k, BundleAdjustmentProbl
     solver.max_num_iterations = iterations;
     solver.num_threads = 1;
     solver.logging_type = ceres::SILENT;
+    if (stop != nullptr) solver.callbacks.push_back(&stop_when_raised);
     ceres::Solver::Summary summary;
     ceres::Solve(solver, &problem, &summary);
     counted.iterations += static_cast<int>(summary.iterations.size());
@@ -251,7 +264,7 @@ std::vector<bool> BundleAdjust(const PinholeIntrinsics& k, BundleAdjustmentProbl
   if (!ba->observations.empty()) {
     solve(options.iterations);
     classify();
-    if (options.refine_iterations > 0) {
+    if (options.refine_iterations > 0 && !counted.stopped) {
       solve(options.refine_iterations);
       classify();
     }

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <atomic>
 #include <string>
 #include <vector>
 
@@ -46,6 +47,8 @@ struct BundleAdjustmentProblem {
 struct BundleAdjustmentStats {
   int observations = 0;  // residuals of the first pass
   int iterations = 0;    // solver iterations, both passes
+  bool stopped =
+      false;  // `stop` was raised: the solve ended early (and the second pass was left out)
 };
 
 struct BundleAdjustmentOptions {
@@ -62,10 +65,13 @@ struct BundleAdjustmentOptions {
 
 // Local bundle adjustment: poses (not fixed) and points jointly. Returns per observation whether
 // it is an inlier after the optimisation (χ² test and positive depth). Single-threaded and so
-// deterministic.
+// deterministic. `stop` (optional), once true, ends the solve after the iteration under way and
+// leaves out the second pass, as ORB-SLAM's local BA stops for a new keyframe: the solution so
+// far is kept and its outliers are still classified.
 std::vector<bool> BundleAdjust(const PinholeIntrinsics& intrinsics,
                                BundleAdjustmentProblem* problem,
                                const BundleAdjustmentOptions& options = {},
-                               BundleAdjustmentStats* stats = nullptr);
+                               BundleAdjustmentStats* stats = nullptr,
+                               const std::atomic<bool>* stop = nullptr);
 
 }  // namespace sdoslam

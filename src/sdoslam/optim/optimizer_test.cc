@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <random>
 
 namespace sdoslam {
@@ -223,6 +224,36 @@ TEST(BundleAdjust, APointBehindItsCamerasIsAnOutlierAndTheRestIsStillAdjusted) {
             static_cast<long>(ba.observations.size()) - 2);
   for (int c = 1; c < 4; ++c)
     EXPECT_LT((ba.poses[c].translation() - truth[c].translation()).norm(), 1e-4);
+}
+
+// ORB-SLAM's local BA stops when a new keyframe arrives: a raised stop ends the solve at once
+// (the problem as it was, its outliers still classified, no second pass), and a stop that is
+// never raised changes nothing.
+TEST(BundleAdjust, ARaisedStopEndsTheSolveAndALoweredOneChangesNothing) {
+  std::vector<Eigen::Isometry3d> truth;
+  const BundleAdjustmentProblem start = PerturbedProblem(&truth);
+
+  BundleAdjustmentProblem stopped = start;
+  const std::atomic<bool> raised{true};
+  BundleAdjustmentStats stats;
+  const auto inliers = BundleAdjust(kK, &stopped, {}, &stats, &raised);
+  EXPECT_TRUE(stats.stopped);
+  EXPECT_LE(stats.iterations, 1);  // Ceres' iteration 0, the starting point's evaluation
+  EXPECT_EQ(inliers.size(), start.observations.size());
+  for (size_t c = 0; c < start.poses.size(); ++c)
+    EXPECT_TRUE(stopped.poses[c].isApprox(start.poses[c], 1e-12)) << c;
+
+  BundleAdjustmentProblem free = start, lowered = start;
+  const std::atomic<bool> never{false};
+  BundleAdjustmentStats free_stats, lowered_stats;
+  BundleAdjust(kK, &free, {}, &free_stats);
+  BundleAdjust(kK, &lowered, {}, &lowered_stats, &never);
+  EXPECT_FALSE(lowered_stats.stopped);
+  EXPECT_EQ(lowered_stats.iterations, free_stats.iterations);
+  EXPECT_GT(free_stats.iterations, 2);
+  for (size_t c = 0; c < start.poses.size(); ++c)
+    EXPECT_EQ(lowered.poses[c].matrix(), free.poses[c].matrix()) << c;
+  EXPECT_LT((free.poses[1].translation() - truth[1].translation()).norm(), 1e-4);
 }
 
 }  // namespace

@@ -490,15 +490,20 @@ RunSummary RunOnDataset(const RunOptions& options) {
   std::string mapping_log =
       "frame_index,ms,insert_ms,triangulate_ms,fuse_ms,ba_ms,ba_solve_ms,cull_ms,lock_wait_ms,"
       "culled_points,triangulated_points,fused_points,local_keyframes,fixed_keyframes,"
-      "local_points,ba_observations,ba_iterations,culled_keyframes,freed_points,cpu_ms\n";
+      "local_points,ba_observations,ba_iterations,ba_stopped,culled_keyframes,freed_points,"
+      "cpu_ms\n";
   for (const MappingRecord& m : summary.mapping) {
     const MappingResult& r = m.result;
     mapping_log += fmt::format(
-        "{},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{},{},{},{},{},{},{},{},{},{},"
+        "{},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{},{},{},{},{},{},{},{},{},{},{"
+        "},"
         "{:.2f}\n",
         m.frame_index, m.ms, r.insert_ms, r.triangulate_ms, r.fuse_ms, r.ba_ms, r.ba_solve_ms,
         r.cull_ms, r.lock_wait_ms, r.culled_points, r.triangulated_points, r.fused_points,
         r.local_keyframes, r.fixed_keyframes, r.local_points, r.ba.observations, r.ba.iterations,
+        r.ba_skipped   ? "skipped"
+        : r.ba.stopped ? "stopped"
+                       : "",
         r.culled_keyframes, r.freed_points, m.cpu_ms);
   }
   results.WriteText("mapping.csv", mapping_log);

@@ -157,10 +157,11 @@ void System::MappingLoop() {
       if (queue_.empty()) return;  // stopping, and everything queued is mapped
       keyframe = queue_.front();
       queue_.pop_front();
+      keyframe_waiting_ = !queue_.empty();
       mapping_busy_ = true;
     }
     const StageClock clock;
-    const MappingResult result = mapper_->Process(keyframe, &map_mutex_);
+    const MappingResult result = mapper_->Process(keyframe, &map_mutex_, &keyframe_waiting_);
     const double ms = clock.WallMs(), cpu_ms = clock.CpuMs();
     {
       std::lock_guard<std::mutex> lock(queue_mutex_);
@@ -289,6 +290,7 @@ TrackingResult System::Track(PreparedFrame&& prepared, FrameTiming* timing) {
       {
         std::lock_guard<std::mutex> lock(queue_mutex_);
         queue_.push_back(keyframe);
+        keyframe_waiting_ = true;
       }
       queue_changed_.notify_one();
     }

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <atomic>
 #include <condition_variable>
 #include <deque>
 #include <memory>
@@ -189,6 +190,8 @@ class System {
   std::condition_variable queue_changed_;
   std::deque<KeyFrame*> queue_;
   bool mapping_busy_ = false;
+  // Whether a keyframe waits in queue_ (kept with it under queue_mutex_): stops local BA.
+  std::atomic<bool> keyframe_waiting_{false};
   bool stop_ = false;
   std::vector<MappingRecord> mapping_records_;
   std::thread mapping_thread_;
