@@ -108,7 +108,7 @@ TEST(FrontEndDetectEvery, CarriedBoxesFollowTheirObjectFrameByFrame) {
   const cv::Size size(640, 480);
   cv::Mat wall(size, CV_8UC3), block(160, 100, CV_8UC3);
   cv::RNG rng(5);
-  // Smooth texture (12 px blobs): the front end computes flow at 320 px wide.
+  // Smooth texture (12 px blobs): the front end computes flow at 256 px wide.
   cv::Mat coarse(size.height / 12, size.width / 12, CV_8UC3);
   rng.fill(coarse, cv::RNG::UNIFORM, 0, 255);
   cv::resize(coarse, wall, size, 0, 0, cv::INTER_CUBIC);
@@ -144,8 +144,10 @@ TEST(FrontEndDetectEvery, CarriedBoxesFollowTheirObjectFrameByFrame) {
     const SdoResult r = front_end.Process(f);
     ASSERT_EQ(r.detections.size(), 1u) << "frame " << k;
     const cv::Rect2f& got = r.detections[0].box;
-    EXPECT_NEAR(got.x, box_of(k).x, 2.0) << "frame " << k;
-    EXPECT_NEAR(got.y, box_of(k).y, 2.0) << "frame " << k;
+    // Within half a frame's motion (3 px; a pixel of the 256 px flow is 2.5): a box left where
+    // it was detected is 6 px behind a frame later, the old shift put it 12 px ahead.
+    EXPECT_NEAR(got.x, box_of(k).x, 3.0) << "frame " << k;
+    EXPECT_NEAR(got.y, box_of(k).y, 3.0) << "frame " << k;
   }
   // A depth image that does not fit the colour image is refused, naming the frame.
   FrontEndFrame bad;
