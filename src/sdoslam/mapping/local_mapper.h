@@ -61,7 +61,8 @@ struct LocalMapperOptions {
   // under way (its solution so far is kept), and a keyframe already waiting when the BA would
   // start skips it, as ORB-SLAM2's local mapping does: the next keyframe's BA covers nearly the
   // same window. Where movers hide much of the room sdo makes a keyframe every 3 frames and each
-  // BA took 40-60 ms of CPU (README, Threads and frame rate). Sequential runs never stop a BA.
+  // BA took 30-70 ms of CPU (mapping.csv, the mixed play threaded). Sequential runs never stop a
+  // BA.
   bool stop_ba_for_new_keyframe = true;
   void Check(const std::string& path = "mapping.") const;  // Error names path + setting
   // Every setting, as its config key (core/config.h: ReadFields, WriteFields).

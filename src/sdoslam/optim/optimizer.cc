@@ -192,12 +192,13 @@ std::vector<bool> BundleAdjust(const PinholeIntrinsics& k, BundleAdjustmentProbl
                                const BundleAdjustmentOptions& options, BundleAdjustmentStats* stats,
                                const std::atomic<bool>* stop) {
   BundleAdjustmentStats counted;
-  // Ends the solve once `stop` is raised; Ceres then keeps the best solution so far.
+  // Ends the solve once `stop` is raised (registered only when there is one); Ceres then keeps
+  // the best solution so far.
   struct StopWhenRaised : ceres::IterationCallback {
-    const std::atomic<bool>* stop;
-    bool* stopped;
+    const std::atomic<bool>* stop = nullptr;
+    bool* stopped = nullptr;
     ceres::CallbackReturnType operator()(const ceres::IterationSummary&) override {
-      if (stop == nullptr || !stop->load(std::memory_order_relaxed)) return ceres::SOLVER_CONTINUE;
+      if (!stop->load(std::memory_order_relaxed)) return ceres::SOLVER_CONTINUE;
       *stopped = true;
       return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
     }

@@ -47,8 +47,8 @@ struct BundleAdjustmentProblem {
 struct BundleAdjustmentStats {
   int observations = 0;  // residuals of the first pass
   int iterations = 0;    // solver iterations, both passes
-  bool stopped =
-      false;  // `stop` was raised: the solve ended early (and the second pass was left out)
+  // `stop` was raised: the solve ended early and the second pass was left out.
+  bool stopped = false;
 };
 
 struct BundleAdjustmentOptions {
