@@ -1,7 +1,10 @@
 #include "sdoslam/optim/optimizer.h"
 
+#include <ceres/tiny_solver.h>
+
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <memory>
 
 #include "sdoslam/core/error.h"
@@ -17,93 +20,6 @@ ceres::CostFunction* MakeResidual(const PinholeIntrinsics& k, const PointObserva
   }
   return new ReprojectionError(m.pixel, sqrt_info, k);
 }
-
-// Every observation of a motion-only problem in one residual block, Huber's loss applied to each
-// inside it. Ceres spends about a thousand instructions of bookkeeping on a residual block per
-// evaluation (its validity checks, the product with the manifold's Jacobian, the loss
-// correction), several times a reprojection error's arithmetic: with a block per observation that
-// was two thirds of OptimizePose (callgrind, fr2_desk_50 sdo: 1.57 G instructions in 30 frames).
-//
-// The loss is applied as Ceres applies Huber's (its Corrector; ρ'' ≤ 0, so no Triggs term), with
-// one row more per observation so that the cost stays exact: the rows are √ρ'·r with Jacobian
-// √ρ'·J, then e = √(ρ − ρ'·s) with Jacobian 0. Their squares sum to ρ(s), so Ceres minimises
-// Σ ρ(s)/2; the gradient √ρ'·Jᵀ·√ρ'·r = ρ'·Jᵀr is the robust one; and the model's change,
-// |r̂ + Ĵδ|² − |r̂|², is the one Ceres' own correction gives. Inside the threshold ρ' = 1, e = 0.
-// An observation that is switched off (an outlier of the last round) gives zero rows.
-class RobustPoseResiduals final : public ceres::CostFunction {
- public:
-  RobustPoseResiduals(const PinholeIntrinsics& k, const std::vector<Eigen::Vector3d>& points,
-                      const std::vector<PointObservation>& observations,
-                      const std::vector<bool>& active)
-      : k_(k), points_(points), observations_(observations), active_(active) {
-    int rows = 0;
-    for (const PointObservation& m : observations) rows += (m.stereo() ? 3 : 2) + 1;
-    set_num_residuals(rows);
-    mutable_parameter_block_sizes()->push_back(7);
-  }
-
-  bool Evaluate(double const* const* parameters, double* residuals,
-                double** jacobians) const override {
-    const Eigen::Isometry3d T = PoseFromParameters(parameters[0]);
-    double* jacobian = jacobians != nullptr ? jacobians[0] : nullptr;
-    int row = 0;
-    for (size_t i = 0; i < observations_.size(); ++i) {
-      const PointObservation& m = observations_[i];
-      const int rows = (m.stereo() ? 3 : 2) + 1;  // the error, then the loss's remainder
-      double* r = residuals + row;
-      double* J = jacobian != nullptr ? jacobian + 7 * row : nullptr;
-      row += rows;
-      if (!active_[i]) {
-        std::fill(r, r + rows, 0.0);
-        if (J != nullptr) std::fill(J, J + 7 * rows, 0.0);
-        continue;
-      }
-      const Eigen::Vector3d p = T * points_[i];
-      if (p.z() <= 1e-6) return false;  // behind the camera: the solver steps back
-      const double sqrt_information = std::sqrt(m.inv_sigma2);
-      if (m.stereo()) {
-        RobustRows<3>(p, Eigen::Vector3d(m.pixel.x(), m.pixel.y(), m.right_u), sqrt_information,
-                      kChi2Stereo, r, J);
-      } else {
-        RobustRows<2>(p, m.pixel, sqrt_information, kChi2Mono, r, J);
-      }
-    }
-    return true;
-  }
-
- private:
-  template <int N>
-  void RobustRows(const Eigen::Vector3d& p, const Eigen::Matrix<double, N, 1>& observed,
-                  double sqrt_information, double huber_threshold2, double* residual_out,
-                  double* jacobian_out) const {
-    Eigen::Matrix<double, N, 1> r;
-    Eigen::Matrix<double, N, 3> d_p;
-    WhitenedProjectionError<N>(k_, p, observed, sqrt_information, &r,
-                               jacobian_out != nullptr ? &d_p : nullptr);
-    const double s = r.squaredNorm();
-    double sqrt_rho1 = 1, remainder = 0;
-    if (s > huber_threshold2) {  // Huber: ρ(s) = 2a√s − a², ρ'(s) = a/√s, with a² the threshold
-      const double a = std::sqrt(huber_threshold2), root_s = std::sqrt(s);
-      sqrt_rho1 = std::sqrt(a / root_s);
-      remainder = std::sqrt(std::max(0.0, a * root_s - huber_threshold2));  // √(ρ − ρ'·s)
-    }
-    Eigen::Map<Eigen::Matrix<double, N + 1, 1>> residual(residual_out);
-    residual.template head<N>() = sqrt_rho1 * r;
-    residual[N] = remainder;
-    if (jacobian_out == nullptr) return;
-    // ∂p/∂δ = [−[p]ₓ  I] for the left perturbation of PoseManifold.
-    Eigen::Map<Eigen::Matrix<double, N + 1, 7, Eigen::RowMajor>> jacobian(jacobian_out);
-    jacobian.template topLeftCorner<N, 3>() = -sqrt_rho1 * d_p * Hat(p);
-    jacobian.template block<N, 3>(0, 3) = sqrt_rho1 * d_p;
-    jacobian.col(6).setZero();
-    jacobian.row(N).setZero();
-  }
-
-  PinholeIntrinsics k_;
-  const std::vector<Eigen::Vector3d>& points_;
-  const std::vector<PointObservation>& observations_;
-  const std::vector<bool>& active_;
-};
 
 // Whitened squared error of an observation, or +inf behind the camera.
 double Chi2(const PinholeIntrinsics& k, const Eigen::Isometry3d& T, const Eigen::Vector3d& X,
@@ -135,35 +51,39 @@ PoseOptimizationResult OptimizePose(const PinholeIntrinsics& k, const Eigen::Iso
   result.T_camera_world = initial;
   result.inlier.assign(observations.size(), true);
   if (observations.empty()) return result;
-  double pose[7];
-  PoseToParameters(initial, pose);
-  PoseManifold manifold;
-  // A point behind the camera cannot be evaluated, and Ceres gives up on a problem whose first
-  // evaluation fails: such an observation starts as an outlier and comes back if a round's pose
-  // puts it in front.
+  // A point behind the camera cannot be evaluated: such an observation starts as an outlier
+  // and comes back if a round's pose puts it in front.
   for (size_t i = 0; i < observations.size(); ++i)
     result.inlier[i] = std::isfinite(Chi2(k, initial, points[i], observations[i]));
-  // One problem for every round: the residual block reads result.inlier, so a round's outliers
-  // add nothing to the next round's solve.
-  ceres::Problem problem(ProblemOptions());
-  problem.AddParameterBlock(pose, 7, &manifold);
-  problem.AddResidualBlock(new RobustPoseResiduals(k, points, observations, result.inlier), nullptr,
-                           pose);
 
+  // The start made orthonormal again (through its quaternion, as Ceres' parameters were): the
+  // result becomes the next frame's start through the motion model, a product of poses and an
+  // inverse that assumes orthonormality, so rounding off orthonormality would otherwise grow
+  // frame by frame (fr2_desk_50 conventional went 3.3 -> 68 mm before this).
+  double start[7];
+  PoseToParameters(initial, start);
+  Eigen::Isometry3d T = PoseFromParameters(start);
+  // The solver keeps its work matrices between rounds (the residual count stays the same).
+  ceres::TinySolver<RobustPoseResiduals> solver;
   for (int round = 0; round < options.rounds; ++round) {
     if (std::count(result.inlier.begin(), result.inlier.end(), true) < 3) break;
-    ceres::Solver::Options solver;
-    // Six unknowns: the normal equations (6×6) are cheaper than a QR of the tall Jacobian, and
-    // well conditioned at this size (the solve's cost 0.32 -> 0.20 G instructions, same poses
-    // to 0.1 mm ATE on fr2_desk_50 and the real-background plays).
-    solver.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
-    solver.max_num_iterations = options.iterations_per_round;
-    solver.num_threads = 1;
-    solver.logging_type = ceres::SILENT;
-    ceres::Solver::Summary summary;
-    ceres::Solve(solver, &problem, &summary);
+    // Each round starts at δ = 0 from the last round's pose; the residuals read result.inlier,
+    // so a round's outliers add nothing to the next round's solve.
+    const RobustPoseResiduals residuals(k, T, points, observations, result.inlier);
+    // Ceres' default stopping rules, which TinySolver states differently: the cost's change
+    // relative to the cost (TinySolver's is absolute, on twice the cost), and a step under 1e-8
+    // of the pose's parameters [q t] (TinySolver's bound is ε·(|δ| + ε), and δ starts at 0).
+    Eigen::VectorXd start_residuals(residuals.NumResiduals());
+    Eigen::Matrix<double, 6, 1> delta = Eigen::Matrix<double, 6, 1>::Zero();
+    residuals(delta.data(), start_residuals.data(), nullptr);
+    solver.options.function_tolerance = 1e-6 * start_residuals.squaredNorm();
+    solver.options.parameter_tolerance =
+        1e-4 * std::sqrt(std::sqrt(1 + T.translation().squaredNorm()));
+    // TinySolver counts its first evaluation as an iteration.
+    solver.options.max_num_iterations = options.iterations_per_round + 1;
+    solver.Solve(residuals, &delta);
+    T = residuals.Pose(delta.data());
     // Reclassify every observation, including earlier outliers, at the new pose.
-    const Eigen::Isometry3d T = PoseFromParameters(pose);
     bool changed = false;
     for (size_t i = 0; i < observations.size(); ++i) {
       const bool inlier = Chi2(k, T, points[i], observations[i]) <=
@@ -176,7 +96,7 @@ PoseOptimizationResult OptimizePose(const PinholeIntrinsics& k, const Eigen::Iso
     // average in fr2_desk_50 sdo).
     if (!changed) break;
   }
-  result.T_camera_world = PoseFromParameters(pose);
+  result.T_camera_world = T;
   result.num_inliers = 0;
   for (bool b : result.inlier) result.num_inliers += b;
   return result;

@@ -157,6 +157,21 @@ TEST(OptimizePose, APointBehindTheStartingPoseIsAnOutlierAndThePoseIsStillFound)
   EXPECT_GT(r.num_inliers, 100);
 }
 
+TEST(OptimizePose, ReturnsARotationFromAStartThatHasDriftedFromOne) {
+  std::vector<Eigen::Vector3d> points;
+  std::vector<PointObservation> obs;
+  NoisyProblem(&points, &obs);
+  // A start whose rotation is off orthonormal by 1e-5, as a chain of pose products can leave it;
+  // a solver that carried that along would hand it to the next frame's start through the motion
+  // model, growing frame by frame.
+  Eigen::Isometry3d initial = StartingPose();
+  initial.linear() = initial.linear() * Eigen::DiagonalMatrix<double, 3>(1 + 1e-5, 1, 1 - 1e-5);
+  const PoseOptimizationResult r = OptimizePose(kK, initial, points, obs);
+  const Eigen::Matrix3d R = r.T_camera_world.linear();
+  EXPECT_LT((R * R.transpose() - Eigen::Matrix3d::Identity()).norm(), 1e-12);
+  EXPECT_LT((r.T_camera_world.translation() - TruePose().translation()).norm(), 0.01);
+}
+
 // Four cameras (the first fixed) seeing 200 points; poses and points start perturbed by ~2 cm.
 BundleAdjustmentProblem PerturbedProblem(std::vector<Eigen::Isometry3d>* truth) {
   std::mt19937 rng(9);

@@ -1,13 +1,28 @@
 #include "sdoslam/optim/residuals.h"
 
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
 namespace sdoslam {
-namespace {
 
 Eigen::Matrix3d ExpSO3(const Eigen::Vector3d& w) {
   const double angle = w.norm();
   if (angle < 1e-12) return Eigen::Matrix3d::Identity() + Hat(w);
   return Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
 }
+
+Eigen::Matrix3d LeftJacobianSO3(const Eigen::Vector3d& w) {
+  const double angle = w.norm();
+  const Eigen::Matrix3d W = Hat(w);
+  // Below this angle the series' next terms are under double precision.
+  if (angle < 1e-6) return Eigen::Matrix3d::Identity() + 0.5 * W;
+  const double a2 = angle * angle;
+  return Eigen::Matrix3d::Identity() + (1 - std::cos(angle)) / a2 * W +
+         (angle - std::sin(angle)) / (a2 * angle) * W * W;
+}
+
+namespace {
 
 // Point in the camera frame and the 3x6 / 3x3 Jacobians of it.
 struct CameraPoint {
@@ -159,6 +174,91 @@ bool StereoReprojectionError::Evaluate(double const* const* parameters, double* 
   Eigen::Map<Eigen::Vector3d> out(residuals);
   out = r;
   if (jacobians != nullptr) WriteJacobians<3>(d, c, jacobians);
+  return true;
+}
+
+RobustPoseResiduals::RobustPoseResiduals(const PinholeIntrinsics& k, const Eigen::Isometry3d& start,
+                                         const std::vector<Eigen::Vector3d>& points,
+                                         const std::vector<PointObservation>& observations,
+                                         const std::vector<bool>& active)
+    : k_(k), start_(start), points_(points), observations_(observations), active_(active) {
+  for (const PointObservation& m : observations) rows_ += (m.stereo() ? 3 : 2) + 1;
+}
+
+Eigen::Isometry3d RobustPoseResiduals::Pose(const double* delta) const {
+  const Eigen::Matrix3d R = ExpSO3(Eigen::Vector3d(delta[0], delta[1], delta[2]));
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = R * start_.linear();
+  T.translation() = R * start_.translation() + Eigen::Vector3d(delta[3], delta[4], delta[5]);
+  return T;
+}
+
+template <int N>
+void RobustPoseResiduals::RobustRows(const Eigen::Vector3d& p,
+                                     const Eigen::Matrix<double, N, 1>& observed,
+                                     double sqrt_information, double huber_threshold2,
+                                     const Eigen::Matrix3d& d_p_d_rotation, double* residual_out,
+                                     double* jacobian, int row) const {
+  Eigen::Matrix<double, N, 1> r;
+  Eigen::Matrix<double, N, 3> d_p;
+  WhitenedProjectionError<N>(k_, p, observed, sqrt_information, &r,
+                             jacobian != nullptr ? &d_p : nullptr);
+  const double s = r.squaredNorm();
+  double sqrt_rho1 = 1, remainder = 0;
+  if (s > huber_threshold2) {  // Huber: ρ(s) = 2a√s − a², ρ'(s) = a/√s, with a² the threshold
+    const double a = std::sqrt(huber_threshold2), root_s = std::sqrt(s);
+    sqrt_rho1 = std::sqrt(a / root_s);
+    remainder = std::sqrt(std::max(0.0, a * root_s - huber_threshold2));  // √(ρ − ρ'·s)
+  }
+  Eigen::Map<Eigen::Matrix<double, N + 1, 1>> residual(residual_out);
+  residual.template head<N>() = sqrt_rho1 * r;
+  residual[N] = remainder;
+  if (jacobian == nullptr) return;
+  Eigen::Map<Eigen::Matrix<double, N + 1, 6>, 0, Eigen::OuterStride<>> J(
+      jacobian + row, N + 1, 6, Eigen::OuterStride<>(rows_));
+  J.template topLeftCorner<N, 3>() = sqrt_rho1 * d_p * d_p_d_rotation;
+  J.template topRightCorner<N, 3>() = sqrt_rho1 * d_p;
+  J.row(N).setZero();
+}
+
+bool RobustPoseResiduals::operator()(const double* delta, double* residuals,
+                                     double* jacobian) const {
+  const Eigen::Isometry3d T = Pose(delta);
+  // p = Exp(δω)·T₀X + δt, so ∂p/∂δ = [−[p − δt]ₓ·J_l(δω)  I].
+  const Eigen::Vector3d translation_step(delta[3], delta[4], delta[5]);
+  const Eigen::Matrix3d chart = jacobian != nullptr
+                                    ? LeftJacobianSO3(Eigen::Vector3d(delta[0], delta[1], delta[2]))
+                                    : Eigen::Matrix3d::Identity();
+  int row = 0;
+  for (size_t i = 0; i < observations_.size(); ++i) {
+    const PointObservation& m = observations_[i];
+    const int rows = (m.stereo() ? 3 : 2) + 1;  // the error, then the loss's remainder
+    double* r = residuals + row;
+    if (!active_[i]) {
+      std::fill(r, r + rows, 0.0);
+      if (jacobian != nullptr) {
+        for (int c = 0; c < 6; ++c) std::fill_n(jacobian + c * rows_ + row, rows, 0.0);
+      }
+      row += rows;
+      continue;
+    }
+    const Eigen::Vector3d p = T * points_[i];
+    if (p.z() <= 1e-6) {
+      std::fill_n(residuals, rows_, std::numeric_limits<double>::infinity());
+      return false;
+    }
+    const double sqrt_information = std::sqrt(m.inv_sigma2);
+    const Eigen::Matrix3d d_p_d_rotation = jacobian != nullptr
+                                               ? Eigen::Matrix3d(-Hat(p - translation_step) * chart)
+                                               : Eigen::Matrix3d::Zero();
+    if (m.stereo()) {
+      RobustRows<3>(p, Eigen::Vector3d(m.pixel.x(), m.pixel.y(), m.right_u), sqrt_information,
+                    kChi2Stereo, d_p_d_rotation, r, jacobian, row);
+    } else {
+      RobustRows<2>(p, m.pixel, sqrt_information, kChi2Mono, d_p_d_rotation, r, jacobian, row);
+    }
+    row += rows;
+  }
   return true;
 }
 
