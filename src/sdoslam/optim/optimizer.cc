@@ -29,6 +29,11 @@ double Chi2(const PinholeIntrinsics& k, const Eigen::Isometry3d& T, const Eigen:
   return ReprojectionChi2(k, p, m);
 }
 
+// Huber's ρ(s) for a squared error s and a threshold a² (as RobustPoseResiduals applies it).
+double Huber(double s, double threshold2) {
+  return s <= threshold2 ? s : 2 * std::sqrt(threshold2 * s) - threshold2;
+}
+
 ceres::Problem::Options ProblemOptions() {
   ceres::Problem::Options o;
   // Residuals are built per solve; let the problem own them (and the loss functions, which
@@ -51,11 +56,6 @@ PoseOptimizationResult OptimizePose(const PinholeIntrinsics& k, const Eigen::Iso
   result.T_camera_world = initial;
   result.inlier.assign(observations.size(), true);
   if (observations.empty()) return result;
-  // A point behind the camera cannot be evaluated: such an observation starts as an outlier
-  // and comes back if a round's pose puts it in front.
-  for (size_t i = 0; i < observations.size(); ++i)
-    result.inlier[i] = std::isfinite(Chi2(k, initial, points[i], observations[i]));
-
   // The start made orthonormal again (through its quaternion, as Ceres' parameters were): the
   // result becomes the next frame's start through the motion model, a product of poses and an
   // inverse that assumes orthonormality, so rounding off orthonormality would otherwise grow
@@ -63,6 +63,16 @@ PoseOptimizationResult OptimizePose(const PinholeIntrinsics& k, const Eigen::Iso
   double start[7];
   PoseToParameters(initial, start);
   Eigen::Isometry3d T = PoseFromParameters(start);
+  // A point behind the camera cannot be evaluated: such an observation starts as an outlier
+  // and comes back if a round's pose puts it in front. `cost` is twice the next round's starting
+  // cost, Σ ρ(s) over its observations, for the stopping rule below; read off the χ² values the
+  // classification computes anyway instead of from another evaluation of every residual.
+  double cost = 0;
+  for (size_t i = 0; i < observations.size(); ++i) {
+    const double chi2 = Chi2(k, T, points[i], observations[i]);
+    result.inlier[i] = std::isfinite(chi2);
+    if (result.inlier[i]) cost += Huber(chi2, ReprojectionChi2Threshold(observations[i].stereo()));
+  }
   // The solver keeps its work matrices between rounds (the residual count stays the same).
   ceres::TinySolver<RobustPoseResiduals> solver;
   for (int round = 0; round < options.rounds; ++round) {
@@ -73,10 +83,8 @@ PoseOptimizationResult OptimizePose(const PinholeIntrinsics& k, const Eigen::Iso
     // Ceres' default stopping rules, which TinySolver states differently: the cost's change
     // relative to the cost (TinySolver's is absolute, on twice the cost), and a step under 1e-8
     // of the pose's parameters [q t] (TinySolver's bound is ε·(|δ| + ε), and δ starts at 0).
-    Eigen::VectorXd start_residuals(residuals.NumResiduals());
     Eigen::Matrix<double, 6, 1> delta = Eigen::Matrix<double, 6, 1>::Zero();
-    residuals(delta.data(), start_residuals.data(), nullptr);
-    solver.options.function_tolerance = 1e-6 * start_residuals.squaredNorm();
+    solver.options.function_tolerance = 1e-6 * cost;
     solver.options.parameter_tolerance =
         1e-4 * std::sqrt(std::sqrt(1 + T.translation().squaredNorm()));
     // TinySolver counts its first evaluation as an iteration.
@@ -84,12 +92,15 @@ PoseOptimizationResult OptimizePose(const PinholeIntrinsics& k, const Eigen::Iso
     solver.Solve(residuals, &delta);
     T = residuals.Pose(delta.data());
     // Reclassify every observation, including earlier outliers, at the new pose.
+    // The inliers lie within Huber's threshold (the same χ² bound), where ρ(s) = s.
     bool changed = false;
+    cost = 0;
     for (size_t i = 0; i < observations.size(); ++i) {
-      const bool inlier = Chi2(k, T, points[i], observations[i]) <=
-                          ReprojectionChi2Threshold(observations[i].stereo());
+      const double chi2 = Chi2(k, T, points[i], observations[i]);
+      const bool inlier = chi2 <= ReprojectionChi2Threshold(observations[i].stereo());
       changed |= inlier != result.inlier[i];
       result.inlier[i] = inlier;
+      if (inlier) cost += chi2;
     }
     // The same observations would pose the same problem again, whose minimum this solve found:
     // further rounds would only refine it below the solver's tolerance (4 rounds -> 2.4 on

@@ -15,7 +15,8 @@ Eigen::Matrix3d ExpSO3(const Eigen::Vector3d& w) {
 Eigen::Matrix3d LeftJacobianSO3(const Eigen::Vector3d& w) {
   const double angle = w.norm();
   const Eigen::Matrix3d W = Hat(w);
-  // Below this angle the series' next terms are under double precision.
+  // Below this angle the closed form loses its digits to cancellation, and the series' next
+  // term (W²/6, about 2e-13) is negligible.
   if (angle < 1e-6) return Eigen::Matrix3d::Identity() + 0.5 * W;
   const double a2 = angle * angle;
   return Eigen::Matrix3d::Identity() + (1 - std::cos(angle)) / a2 * W +

@@ -94,8 +94,7 @@ class RobustPoseResiduals {
   using Scalar = double;
   enum { NUM_RESIDUALS = Eigen::Dynamic, NUM_PARAMETERS = 6 };
 
-  // The vectors are held by reference and must outlive the object; `active` may change between
-  // evaluations (OptimizePose's rounds do not: each round makes its own).
+  // The vectors are held by reference and must outlive the object.
   RobustPoseResiduals(const PinholeIntrinsics& k, const Eigen::Isometry3d& start,
                       const std::vector<Eigen::Vector3d>& points,
                       const std::vector<PointObservation>& observations,
