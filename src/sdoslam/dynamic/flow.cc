@@ -12,10 +12,11 @@
 namespace sdoslam {
 namespace {
 
-cv::Mat GrayAtWidth(const cv::Mat& bgr, int width) {
-  cv::Mat gray, small;
-  cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
-  if (width >= gray.cols) return gray;
+// `gray`: bgr in grey, or empty (made here).
+cv::Mat GrayAtWidth(const cv::Mat& bgr, const cv::Mat& given_gray, int width) {
+  cv::Mat gray = given_gray, small;
+  if (gray.empty()) cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
+  if (width >= gray.cols) return given_gray.empty() ? gray : gray.clone();  // memory of its own
   const double s = static_cast<double>(width) / gray.cols;
   cv::resize(gray, small, {width, std::max(1, static_cast<int>(std::lround(gray.rows * s)))}, 0, 0,
              cv::INTER_AREA);
@@ -27,7 +28,10 @@ class DisFlow : public FlowEstimator {
   explicit DisFlow(const FlowOptions& options)
       : options_(options), dis_(cv::DISOpticalFlow::create(options.dis_preset)) {}
   cv::Mat Prepare(const cv::Mat& bgr) const override {
-    return GrayAtWidth(bgr, options_.work_width);
+    return GrayAtWidth(bgr, cv::Mat(), options_.work_width);
+  }
+  cv::Mat PrepareWithGray(const cv::Mat& bgr, const cv::Mat& gray) const override {
+    return GrayAtWidth(bgr, gray, options_.work_width);
   }
   cv::Mat ComputePrepared(const cv::Mat& previous, const cv::Mat& current) override {
     cv::Mat flow;
@@ -44,7 +48,10 @@ class FarnebackFlow : public FlowEstimator {
  public:
   explicit FarnebackFlow(const FlowOptions& options) : options_(options) {}
   cv::Mat Prepare(const cv::Mat& bgr) const override {
-    return GrayAtWidth(bgr, options_.work_width);
+    return GrayAtWidth(bgr, cv::Mat(), options_.work_width);
+  }
+  cv::Mat PrepareWithGray(const cv::Mat& bgr, const cv::Mat& gray) const override {
+    return GrayAtWidth(bgr, gray, options_.work_width);
   }
   cv::Mat ComputePrepared(const cv::Mat& previous, const cv::Mat& current) override {
     cv::Mat flow;

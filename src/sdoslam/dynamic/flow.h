@@ -17,6 +17,11 @@ class FlowEstimator {
   // and keeps it, after the frame's image is gone, for the pairs the frame is part of (with
   // flow.frame_gap = 3, three).
   virtual cv::Mat Prepare(const cv::Mat& bgr) const = 0;
+  // Prepare for a frame whose grey image (`gray`, CV_8UC1, may be empty) the caller has made
+  // already: estimators that work on grey take it instead of converting `bgr` once more.
+  virtual cv::Mat PrepareWithGray(const cv::Mat& bgr, const cv::Mat& /*gray*/) const {
+    return Prepare(bgr);
+  }
   // Flow between two prepared images: CV_32FC2 at (work) resolution, displacement in pixels of
   // that resolution. The result may be smaller than the images; its aspect is the images'.
   virtual cv::Mat ComputePrepared(const cv::Mat& previous, const cv::Mat& current) = 0;

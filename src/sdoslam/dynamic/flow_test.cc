@@ -114,5 +114,37 @@ TEST(ClassicalFlow, RecoversAKnownShift) {
   }
 }
 
+// A grey image the caller has made already is what DIS and Farnebäck prepare from (the frame's
+// grey image is made once, for the features, the check and the flow), and without one they
+// convert the colour image themselves; either way the prepared image has memory of its own.
+TEST(ClassicalFlow, PreparesFromTheCallersGreyImage) {
+  cv::Mat bgr(480, 640, CV_8UC3);
+  cv::RNG rng(3);
+  rng.fill(bgr, cv::RNG::UNIFORM, 0, 255);
+  cv::Mat own_gray;
+  cv::cvtColor(bgr, own_gray, cv::COLOR_BGR2GRAY);
+  cv::Mat other_gray(480, 640, CV_8UC1);
+  rng.fill(other_gray, cv::RNG::UNIFORM, 0, 255);  // not bgr's grey: shows which one was used
+  const auto same = [](const cv::Mat& a, const cv::Mat& b) {
+    return a.size() == b.size() && a.type() == b.type() && cv::countNonZero(a != b) == 0;
+  };
+  for (const auto& make : {MakeDisFlow, MakeFarnebackFlow}) {
+    for (const int width : {256, 640}) {
+      FlowOptions options;
+      options.work_width = width;
+      const auto flow = make(options);
+      const cv::Mat from_bgr = flow->Prepare(bgr);
+      EXPECT_TRUE(same(flow->PrepareWithGray(bgr, cv::Mat()), from_bgr));
+      EXPECT_TRUE(same(flow->PrepareWithGray(bgr, own_gray), from_bgr));
+      const cv::Mat from_other = flow->PrepareWithGray(bgr, other_gray);
+      cv::Mat expected = other_gray;
+      if (width < 640) cv::resize(other_gray, expected, {256, 192}, 0, 0, cv::INTER_AREA);
+      EXPECT_TRUE(same(from_other, expected)) << width;
+      EXPECT_FALSE(same(from_other, from_bgr)) << width;
+      EXPECT_NE(from_other.data, other_gray.data) << width;  // not the caller's buffer
+    }
+  }
+}
+
 }  // namespace
 }  // namespace sdoslam

@@ -13,6 +13,7 @@ struct FrontEndFrame {
   std::filesystem::path rgb_path;  // file backends find their per-frame data by its file name
   cv::Mat bgr;                     // CV_8UC3
   cv::Mat depth;                   // CV_32F metres, 0 = none; may be empty
+  cv::Mat gray;                    // CV_8UC1, bgr in grey where the caller has it; may be empty
 };
 
 // Per-pixel and per-feature classes of the front end (and of the consistency check, which runs

@@ -209,11 +209,15 @@ SdoResult FrontEnd::Process(const FrontEndFrame& frame, FrontEndTiming* timing) 
         frame.index, frame.depth.cols, frame.depth.rows, frame.depth.channels(),
         frame.depth.depth(), image_size_.width, image_size_.height));
   }
+  if (!frame.gray.empty() && (frame.gray.size() != image_size_ || frame.gray.type() != CV_8UC1)) {
+    throw Error(fmt::format("frame {}: the grey image is not 8-bit single-channel {}x{}",
+                            frame.index, image_size_.width, image_size_.height));
+  }
   FrontEndTiming t;
   auto start = std::chrono::steady_clock::now();
   cv::Mat flow, boundaries;
   const int flow_span = static_cast<int>(previous_flow_inputs_.size());  // frames the flow spans
-  cv::Mat flow_input = flow_->Prepare(frame.bgr);
+  cv::Mat flow_input = flow_->PrepareWithGray(frame.bgr, frame.gray);
   if (!previous_flow_inputs_.empty()) {
     flow = flow_->ComputePrepared(previous_flow_inputs_.front(), flow_input);
     boundaries = MotionBoundaryMask(flow, options_.boundaries);

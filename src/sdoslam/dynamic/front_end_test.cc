@@ -91,6 +91,25 @@ TEST_F(OnnxFrontEnd, AMissingOrMismatchedModelFailsBeforeTheFirstFrame) {
       << segmenter;
 }
 
+// A frame's grey image (the caller's, shared with feature extraction) must be the colour
+// image's size and single-channel 8-bit; one that is not is named, not handed to the flow.
+TEST(FrontEndInput, AGreyImageThatDoesNotFitIsNamed) {
+  FrontEnd front_end(FrontEndOptions{}, {}, {640, 480}, {},
+                     cv::Matx33d(525, 0, 319.5, 0, 525, 239.5, 0, 0, 1));
+  FrontEndFrame frame;
+  frame.bgr = cv::Mat(480, 640, CV_8UC3, cv::Scalar(40, 80, 120));
+  frame.depth = cv::Mat(480, 640, CV_32F, cv::Scalar(2.0f));
+  for (const cv::Mat& gray : {cv::Mat(240, 320, CV_8UC1), cv::Mat(480, 640, CV_8UC3)}) {
+    frame.gray = gray;
+    const std::string message = testing::MessageOf([&] { front_end.Process(frame); });
+    EXPECT_NE(message.find("frame 0: the grey image is not 8-bit single-channel 640x480"),
+              std::string::npos)
+        << message;
+  }
+  cv::cvtColor(frame.bgr, frame.gray, cv::COLOR_BGR2GRAY);
+  EXPECT_EQ(front_end.Process(frame).labels.size(), cv::Size(640, 480));
+}
+
 std::string WrittenFrontEndOptions(const FrontEndOptions& options) {
   return testing::WrittenYaml(options, WriteFrontEndOptions);
 }

@@ -30,14 +30,18 @@ FrameGeometry::FrameGeometry(const Camera& cam, const OrbExtractor& extractor, d
 }
 
 Frame::Frame(size_t frame_index, double time, const cv::Mat& bgr, const cv::Mat& depth_image,
-             std::shared_ptr<const FrameGeometry> shared_geometry, const OrbExtractor& extractor)
+             std::shared_ptr<const FrameGeometry> shared_geometry, const OrbExtractor& extractor,
+             const cv::Mat& given_gray)
     : index(frame_index), timestamp(time), geometry(std::move(shared_geometry)) {
-  cv::Mat gray;
-  if (bgr.channels() == 3) {
-    cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
-  } else {
-    gray = bgr;
+  cv::Mat gray = given_gray;
+  if (gray.empty()) {
+    if (bgr.channels() == 3) {
+      cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
+    } else {
+      gray = bgr;
+    }
   }
+  CV_Assert(gray.type() == CV_8UC1 && gray.size() == bgr.size());
   extractor.Extract(gray, &keypoints, &descriptors);
   std::vector<cv::Point2f> points;
   points.reserve(keypoints.size());

@@ -189,9 +189,14 @@ StagedFrame Pipeline::Prepare(RgbdInput input, const cv::Mat& dynamic_mask) {
     throw Error(fmt::format("frame {}: the dynamic mask is not 8-bit single-channel {}x{}",
                             input.index, image_size.width, image_size.height));
   cv::Mat segments;
+  // The grey image is made once a frame: feature extraction, the consistency check and the
+  // front end's flow share it.
+  cv::Mat gray;
+  cv::cvtColor(input.bgr, gray, cv::COLOR_BGR2GRAY);
   std::optional<PreparedFrame> features;
   auto extract = [&] {
-    features.emplace(slam_->ExtractFeatures(input.index, input.timestamp, input.bgr, input.depth));
+    features.emplace(
+        slam_->ExtractFeatures(input.index, input.timestamp, input.bgr, input.depth, gray));
   };
   // A thread of its own (tens of microseconds to start against 10 ms of work; ThreadSanitizer sees
   // its synchronisation, which it would not in a TBB task). The future's destructor waits for it on
@@ -200,7 +205,7 @@ StagedFrame Pipeline::Prepare(RgbdInput input, const cv::Mat& dynamic_mask) {
   const bool beside = front_end_ && options_.extract_beside_front_end;
   if (beside) extraction = std::async(std::launch::async, extract);
   if (front_end_) {
-    FrontEndFrame frame{input.index, input.timestamp, input.rgb_path, input.bgr, input.depth};
+    FrontEndFrame frame{input.index, input.timestamp, input.rgb_path, input.bgr, input.depth, gray};
     staged.sdo = front_end_->Process(frame, &staged.front_end_timing);
     staged.labels = staged.sdo->labels;
     segments = staged.sdo->segments.labels;

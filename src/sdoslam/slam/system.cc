@@ -197,22 +197,29 @@ PreparedFrame System::Prepare(size_t index, double timestamp, const cv::Mat& bgr
 }
 
 PreparedFrame System::ExtractFeatures(size_t index, double timestamp, const cv::Mat& bgr,
-                                      const cv::Mat& depth) const {
+                                      const cv::Mat& depth, const cv::Mat& given_gray) const {
   const CameraOptions& c = geometry_->camera.options();
   if (bgr.cols != c.width || bgr.rows != c.height || depth.size() != bgr.size()) {
     throw Error("frame " + std::to_string(index) + ": images are not " + std::to_string(c.width) +
                 "x" + std::to_string(c.height));
   }
   const auto start = std::chrono::steady_clock::now();
-  // The grey image is made once: feature extraction and the consistency check share it.
-  cv::Mat gray;
-  if (bgr.channels() == 3) {
-    cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
-  } else {
-    gray = bgr;
+  if (!given_gray.empty() && (given_gray.size() != bgr.size() || given_gray.type() != CV_8UC1)) {
+    throw Error("frame " + std::to_string(index) +
+                ": the grey image is not 8-bit single-channel of the frame's size");
+  }
+  // The grey image is made once: feature extraction and the consistency check share it. The
+  // frame takes the colour image as well, for its features' colours (map.ply).
+  cv::Mat gray = given_gray;
+  if (gray.empty()) {
+    if (bgr.channels() == 3) {
+      cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
+    } else {
+      gray = bgr;
+    }
   }
   PreparedFrame prepared{
-      Frame(index, timestamp, gray, depth, geometry_, extractor_), {}, 0, gray, depth};
+      Frame(index, timestamp, bgr, depth, geometry_, extractor_, gray), {}, 0, gray, depth};
   prepared.features_ms = MsSince(start);
   return prepared;
 }

@@ -139,8 +139,10 @@ class System {
   // makes the labels and segments: Prepare(...) is exactly ExtractFeatures(index, timestamp,
   // bgr, depth) followed by AddDynamicInputs(&prepared, dynamic_labels, segments,
   // locked_segments). Each validates its own inputs.
+  // `gray`: `bgr` in grey where the caller has made it already (a front end that works on grey
+  // too shares it); made here otherwise.
   PreparedFrame ExtractFeatures(size_t index, double timestamp, const cv::Mat& bgr,
-                                const cv::Mat& depth) const;
+                                const cv::Mat& depth, const cv::Mat& gray = cv::Mat()) const;
   void AddDynamicInputs(PreparedFrame* prepared, const cv::Mat& dynamic_labels,
                         const cv::Mat& segments, const std::vector<uint8_t>& locked_segments) const;
   TrackingResult Track(PreparedFrame&& prepared, FrameTiming* timing = nullptr);

@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
+#include <opencv2/imgproc.hpp>
+
 #include "sdoslam/eval/metrics.h"
 #include "sdoslam/io/tum_dataset.h"
 #include "sdoslam/synth/scenarios.h"
@@ -670,6 +672,45 @@ TEST_F(SlamLoopClosing, TheLongLoopIsClosedAtTheRevisitAndTheErrorAtLeastHalved)
   EXPECT_GT(lean_loop.fused_points, 0);
   EXPECT_EQ(skipped.trajectory.size(), frames);
   EXPECT_LE(Ate(skipped), 0.5 * Ate(without));
+}
+
+// The grey image a caller has made (the pipeline makes it once a frame, for the features, the
+// check and the front end's flow) gives the same features as the colour image alone, and the
+// features keep the colour image's colours (map.ply); one that does not fit is named.
+TEST(SlamInput, ExtractionTakesTheCallersGreyImageAndKeepsTheColours) {
+  const CameraOptions camera = synth::SyntheticCamera();
+  const System slam(camera, SlamOptions{});
+  cv::Mat bgr(camera.height, camera.width, CV_8UC3);
+  cv::RNG rng(5);
+  rng.fill(bgr, cv::RNG::UNIFORM, 0, 255);
+  cv::GaussianBlur(bgr, bgr, {0, 0}, 1.5);
+  const cv::Mat depth(bgr.size(), CV_32F, cv::Scalar(2.0f));
+  cv::Mat gray;
+  cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
+  const PreparedFrame alone = slam.ExtractFeatures(0, 0.0, bgr, depth);
+  const PreparedFrame shared = slam.ExtractFeatures(0, 0.0, bgr, depth, gray);
+  ASSERT_GT(shared.frame.size(), 100u);
+  ASSERT_EQ(shared.frame.size(), alone.frame.size());
+  EXPECT_EQ(cv::norm(shared.frame.descriptors, alone.frame.descriptors, cv::NORM_HAMMING), 0);
+  EXPECT_EQ(shared.gray.data, gray.data);  // the check gets the caller's image, not a copy
+  size_t coloured = 0;
+  for (size_t i = 0; i < shared.frame.size(); ++i) {
+    const cv::Point2f& pt = shared.frame.keypoints[i].pt;
+    const cv::Vec3b expected =
+        bgr.at<cv::Vec3b>(static_cast<int>(std::lround(pt.y)), static_cast<int>(std::lround(pt.x)));
+    EXPECT_EQ(shared.frame.colors[i], expected) << i;
+    EXPECT_EQ(alone.frame.colors[i], expected) << i;
+    coloured += expected[0] != expected[1] || expected[1] != expected[2];
+  }
+  EXPECT_GT(coloured, shared.frame.size() / 2);  // the check above would pass on a grey image
+  for (const cv::Mat& wrong : {cv::Mat(gray, cv::Rect(0, 0, 320, 240)), cv::Mat(bgr)}) {
+    const std::string message =
+        testing::MessageOf([&] { slam.ExtractFeatures(7, 0.0, bgr, depth, wrong); });
+    EXPECT_NE(
+        message.find("frame 7: the grey image is not 8-bit single-channel of the frame's size"),
+        std::string::npos)
+        << message;
+  }
 }
 
 TEST(SlamOptionsTest, ConfigSectionsAreReadAndUnknownKeysRejected) {
