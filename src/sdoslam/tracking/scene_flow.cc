@@ -177,8 +177,10 @@ void TrackPointsBack(const SceneFlowOptions& o, const LkPyramid& current, const 
   std::vector<cv::Point2f> returned;
   for (size_t i : kept) returned.push_back(points[i]);  // initial guess: where they started
   std::vector<uint8_t> returned_found;
+  // No error output: the round trip is judged by where it ends, and without one OpenCV skips a
+  // pass over each point's window.
   cv::calcOpticalFlowPyrLK(
-      previous, current, starts, returned, returned_found, error,
+      previous, current, starts, returned, returned_found, cv::noArray(),
       cv::Size(o.track_window, o.track_window), o.track_levels,
       cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, o.track_iterations, 0.03),
       cv::OPTFLOW_USE_INITIAL_FLOW);
