@@ -203,6 +203,10 @@ PreparedFrame System::ExtractFeatures(size_t index, double timestamp, const cv::
     throw Error("frame " + std::to_string(index) + ": images are not " + std::to_string(c.width) +
                 "x" + std::to_string(c.height));
   }
+  if (bgr.type() != CV_8UC3 && bgr.type() != CV_8UC1) {
+    throw Error("frame " + std::to_string(index) +
+                ": the image is neither 8-bit colour (3 channels, BGR) nor 8-bit grey");
+  }
   const auto start = std::chrono::steady_clock::now();
   if (!given_gray.empty() && (given_gray.size() != bgr.size() || given_gray.type() != CV_8UC1)) {
     throw Error("frame " + std::to_string(index) +

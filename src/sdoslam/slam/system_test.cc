@@ -703,6 +703,13 @@ TEST(SlamInput, ExtractionTakesTheCallersGreyImageAndKeepsTheColours) {
     coloured += expected[0] != expected[1] || expected[1] != expected[2];
   }
   EXPECT_GT(coloured, shared.frame.size() / 2);  // the check above would pass on a grey image
+  cv::Mat bgra;
+  cv::cvtColor(bgr, bgra, cv::COLOR_BGR2BGRA);
+  const std::string four = testing::MessageOf([&] { slam.ExtractFeatures(7, 0.0, bgra, depth); });
+  EXPECT_NE(
+      four.find("frame 7: the image is neither 8-bit colour (3 channels, BGR) nor 8-bit grey"),
+      std::string::npos)
+      << four;
   for (const cv::Mat& wrong : {cv::Mat(gray, cv::Rect(0, 0, 320, 240)), cv::Mat(bgr)}) {
     const std::string message =
         testing::MessageOf([&] { slam.ExtractFeatures(7, 0.0, bgr, depth, wrong); });
