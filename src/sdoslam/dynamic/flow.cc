@@ -12,7 +12,7 @@
 namespace sdoslam {
 namespace {
 
-// `gray`: bgr in grey, or empty (made here).
+// `given_gray`: bgr in grey, or empty (made here from bgr).
 cv::Mat GrayAtWidth(const cv::Mat& bgr, const cv::Mat& given_gray, int width) {
   cv::Mat gray = given_gray, small;
   if (gray.empty()) cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
