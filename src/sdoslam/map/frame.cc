@@ -29,18 +29,18 @@ FrameGeometry::FrameGeometry(const Camera& cam, const OrbExtractor& extractor, d
   grid_cell_inv_h = kGridRows / (max_y - min_y);
 }
 
+cv::Mat GrayImage(const cv::Mat& image) {
+  if (image.channels() != 3) return image;
+  cv::Mat gray;
+  cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
+  return gray;
+}
+
 Frame::Frame(size_t frame_index, double time, const cv::Mat& bgr, const cv::Mat& depth_image,
              std::shared_ptr<const FrameGeometry> shared_geometry, const OrbExtractor& extractor,
              const cv::Mat& given_gray)
     : index(frame_index), timestamp(time), geometry(std::move(shared_geometry)) {
-  cv::Mat gray = given_gray;
-  if (gray.empty()) {
-    if (bgr.channels() == 3) {
-      cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
-    } else {
-      gray = bgr;
-    }
-  }
+  const cv::Mat gray = given_gray.empty() ? GrayImage(bgr) : given_gray;
   CV_Assert(gray.type() == CV_8UC1 && gray.size() == bgr.size());
   extractor.Extract(gray, &keypoints, &descriptors);
   std::vector<cv::Point2f> points;

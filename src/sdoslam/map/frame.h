@@ -30,6 +30,9 @@ struct FrameGeometry {
   }
 };
 
+// `image` in grey: converted from BGR (CV_8UC3), or `image` itself when it is grey already.
+cv::Mat GrayImage(const cv::Mat& image);
+
 // A frame's features: keypoints with depth, descriptors, and the map points they are matched to.
 class Frame {
  public:

@@ -5,7 +5,6 @@
 
 #include <chrono>
 #include <cmath>
-#include <opencv2/imgproc.hpp>
 #include <optional>
 
 #include "sdoslam/core/error.h"
@@ -214,14 +213,7 @@ PreparedFrame System::ExtractFeatures(size_t index, double timestamp, const cv::
   }
   // The grey image is made once: feature extraction and the consistency check share it. The
   // frame takes the colour image as well, for its features' colours (map.ply).
-  cv::Mat gray = given_gray;
-  if (gray.empty()) {
-    if (bgr.channels() == 3) {
-      cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
-    } else {
-      gray = bgr;
-    }
-  }
+  const cv::Mat gray = given_gray.empty() ? GrayImage(bgr) : given_gray;
   PreparedFrame prepared{
       Frame(index, timestamp, bgr, depth, geometry_, extractor_, gray), {}, 0, gray, depth};
   prepared.features_ms = MsSince(start);
