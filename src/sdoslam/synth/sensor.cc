@@ -25,7 +25,7 @@ SensorFrame Sense(const RenderedView& view, const CameraOptions& camera,
                   const SensorOptions& options, uint32_t seed, int frame, double gain) {
   const int w = view.depth.cols, h = view.depth.rows;
   std::mt19937 rng(seed * 7919u + static_cast<uint32_t>(frame) * 104729u + 17u);
-  std::normal_distribution<float> unit_normal(0.0f, 1.0f);
+  UnitNormal unit_normal(rng);
   const bool noisy = options.enabled;
 
   SensorFrame out;
@@ -36,7 +36,7 @@ SensorFrame Sense(const RenderedView& view, const CameraOptions& camera,
     for (int u = 0; u < w; ++u) {
       for (int c = 0; c < 3; ++c) {
         float value = in[u][c] * 255.0f * static_cast<float>(gain);
-        if (noisy) value += static_cast<float>(options.image_noise_sigma) * unit_normal(rng);
+        if (noisy) value += static_cast<float>(options.image_noise_sigma) * unit_normal();
         px[u][c] = cv::saturate_cast<uint8_t>(value);
       }
     }
@@ -59,7 +59,7 @@ SensorFrame Sense(const RenderedView& view, const CameraOptions& camera,
           if (n > 0 && z - n > options.silhouette_jump * z) missing = true;
         }
         const double sigma = options.depth_noise_a + options.depth_noise_b * (z - 0.4) * (z - 0.4);
-        z += sigma * unit_normal(rng);
+        z += sigma * unit_normal();
         if (options.depth_distortion != 0) {
           const double du = (u - 0.5 * (w - 1)) / (0.5 * w), dv = (v - 0.5 * (h - 1)) / (0.5 * h);
           const double rho2 = (du * du * w * w + dv * dv * h * h) / (w * w + h * h);

@@ -1,8 +1,10 @@
 #include <gtest/gtest.h>
 
+#include <cstring>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <random>
 #include <set>
 
 #include "sdoslam/core/error.h"
@@ -10,6 +12,7 @@
 #include "sdoslam/io/tum_dataset.h"
 #include "sdoslam/synth/renderer.h"
 #include "sdoslam/synth/scenarios.h"
+#include "sdoslam/synth/sensor.h"
 #include "sdoslam/synth/sequence.h"
 #include "sdoslam/testing/test_util.h"
 
@@ -145,6 +148,85 @@ TEST(Renderer, StaticPixelsReprojectOntoTheSameSurfaceInTheNextFrame) {
     EXPECT_LT(colour_errors[colour_errors.size() / 2], 1e-5) << ToString(motion);
     EXPECT_LT(colour_errors[colour_errors.size() * 8 / 10], 0.02) << ToString(motion);
   }
+}
+
+// The renderer tests a ray only against the primitives whose screen rectangle holds its pixel.
+// Every pixel is rendered here again against every primitive, nearest hit first and the earlier
+// primitive on a tie, as the renderer orders them: depth and instance must agree exactly, so a
+// rectangle that leaves out a pixel the primitive covers shows. The views include walls partly
+// behind the camera, people close to it, and a camera pressed against a cabinet and a wall.
+TEST(Renderer, ScreenRectanglesLeaveOutNoPixelAPrimitiveCovers) {
+  CameraOptions o = SyntheticCamera();  // half resolution: a quarter of the brute force's time
+  o.width /= 2;
+  o.height /= 2;
+  o.fx /= 2;
+  o.fy /= 2;
+  o.cx = (o.cx + 0.5) / 2 - 0.5;
+  o.cy = (o.cy + 0.5) / 2 - 0.5;
+  const Camera camera(o);
+  struct View {
+    std::string scenario;
+    double t;
+    double duration;
+  };
+  int views = 0, people_views = 0;
+  for (const View& view :
+       {View{"walking_xyz", 1.0, 10.0}, View{"walking_halfsphere", 6.0, 10.0},
+        View{"long_loop_people", 9.0, 24.0}, View{"long_loop_people", 15.0, 24.0},
+        View{"long_loop", 4.0, 24.0}, View{"mixed", 3.0, 10.0}, View{"box_alongside", 2.0, 10.0}}) {
+    const Scenario scenario = MakeScenario(view.scenario, view.duration);
+    std::vector<Eigen::Isometry3d> poses = {CameraPoseAt(scenario.motion, view.t, view.duration)};
+    if (views == 0) {
+      // 5 cm in front of the cabinet at (-2.4, 3.0), looking at it.
+      Eigen::Matrix3d R;
+      R << 1, 0, 0, 0, 0, 1, 0, -1, 0;  // camera x = world x, y = -z (down), z = world y
+      poses.push_back(Pose(Eigen::Vector3d(-2.0, 2.55, 1.0), R));
+      // 5 cm from the left wall, looking at it, above the shelves that reach out behind.
+      Eigen::Matrix3d L;
+      L << 0, 0, -1, 1, 0, 0, 0, -1, 0;
+      poses.push_back(Pose(Eigen::Vector3d(-2.95, 0.0, 1.5), L));
+    }
+    for (const Eigen::Isometry3d& T_world_camera : poses) {
+      SCOPED_TRACE(view.scenario + " t = " + std::to_string(view.t));
+      const RenderedView rendered = Render(scenario.scene, view.t, T_world_camera, camera);
+      std::vector<Primitive> parts = scenario.scene.static_parts;
+      std::vector<uint16_t> ids(parts.size(), 0);
+      for (const SceneObject& object : scenario.scene.objects) {
+        for (const Primitive& part : object.parts_at(view.t)) {
+          parts.push_back(part);
+          ids.push_back(object.id);
+        }
+      }
+      const Eigen::Vector3d origin = T_world_camera.translation();
+      int mismatched = 0, on_objects = 0;
+      for (int v = 0; v < o.height; ++v) {
+        for (int u = 0; u < o.width; ++u) {
+          const Eigen::Vector3d direction =
+              T_world_camera.linear() * Eigen::Vector3d((u - o.cx) / o.fx, (v - o.cy) / o.fy, 1.0);
+          Hit best, hit;
+          best.distance = 1e9;
+          uint16_t id = 0;
+          bool any = false;
+          for (size_t k = 0; k < parts.size(); ++k) {
+            if (Intersect(parts[k], origin, direction, best.distance, &hit)) {
+              best = hit;
+              id = ids[k];
+              any = true;
+            }
+          }
+          const float depth = any ? static_cast<float>(best.distance) : 0.0f;
+          on_objects += id != 0;
+          mismatched +=
+              rendered.depth.at<float>(v, u) != depth || rendered.instance.at<uint16_t>(v, u) != id;
+        }
+      }
+      EXPECT_EQ(mismatched, 0);
+      ++views;
+      people_views += on_objects > 100;
+    }
+  }
+  EXPECT_EQ(views, 9);
+  EXPECT_GE(people_views, 4);  // the movers were in view, not only the room
 }
 
 TEST(Scenarios, LoopReturnsToItsStartAndUnknownNamesAreErrors) {
@@ -346,6 +428,29 @@ TEST(Sensor, DepthNoiseFollowsTheModelAndSilhouettesLoseDepth) {
   cv::Scalar mean, stddev;
   cv::meanStdDev(diff.reshape(1), mean, stddev);
   EXPECT_NEAR(stddev[0], 2.0, 0.3);
+}
+
+// The sensor's noise is std::normal_distribution<float>'s, drawn by hand for speed: the same
+// values bit for bit, so sequences stay as they were rendered before.
+TEST(Sensor, UnitNormalDrawsWhatTheStandardLibraryDraws) {
+  for (const uint32_t seed : {17u, 7919u * 5u + 17u, 123456789u}) {
+    std::mt19937 ours(seed), theirs(seed);
+    UnitNormal unit_normal(ours);
+    std::normal_distribution<float> library(0.0f, 1.0f);
+    int differ = 0;
+    double sum = 0, sum_sq = 0;
+    constexpr int kDraws = 1000000;
+    for (int k = 0; k < kDraws; ++k) {
+      const float a = unit_normal(), b = library(theirs);
+      differ += std::memcmp(&a, &b, sizeof a) != 0;
+      sum += a;
+      sum_sq += double(a) * a;
+    }
+    EXPECT_EQ(differ, 0) << "seed " << seed;
+    EXPECT_NEAR(sum / kDraws, 0.0, 0.005);
+    EXPECT_NEAR(sum_sq / kDraws, 1.0, 0.005);
+    EXPECT_EQ(ours(), theirs());  // and the generator left in the same state
+  }
 }
 
 TEST(Sensor, DepthDistortionGrowsTowardsTheCorners) {
