@@ -16,8 +16,10 @@ all=(trajectory tum_lists config detections masks manifest)
 targets=("${1:-${all[@]}}")
 [ "${1:-}" = "" ] && targets=("${all[@]}")
 
-CC=clang CXX=clang++ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSDOSLAM_FUZZ=ON \
-  >/dev/null
+# -O1 and line tables only (CMakeLists.txt), as libFuzzer's documentation builds: the readers
+# are small, and CI builds the libraries they live in a second time here (131 -> 108 s on 2 cores).
+CC=clang CXX=clang++ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -DNDEBUG" -DSDOSLAM_FUZZ=ON >/dev/null
 cmake --build build-fuzz -j "$(nproc 2>/dev/null || echo 2)" \
   --target $(printf '%s_fuzz ' "${targets[@]}")
 mkdir -p build-fuzz/findings
