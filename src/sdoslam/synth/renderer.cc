@@ -147,6 +147,7 @@ RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_wor
     auto* colour_row = view.colour.ptr<cv::Vec3f>(v);
     auto* depth_row = view.depth.ptr<float>(v);
     auto* id_row = view.instance.ptr<uint16_t>(v);
+    TextureSampler texture;
     std::vector<const Candidate*> row_candidates;
     for (const Candidate& c : candidates) {
       if (v >= c.screen.y && v < c.screen.y + c.screen.height) row_candidates.push_back(&c);
@@ -176,9 +177,11 @@ RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_wor
         continue;
       }
       const Primitive& p = *best_candidate->primitive;
-      const Eigen::Vector3f albedo =
-          TextureColour(p.base_colour, p.texture_seed,
-                        (best_candidate->T_texture_world * best.point) / p.texture_scale);
+      const Eigen::Vector3d in_texture = best_candidate->T_texture_world * best.point;
+      // (x / 1 is x: the common scale costs no divisions.)
+      const Eigen::Vector3f albedo = texture.Colour(
+          p.base_colour, p.texture_seed,
+          p.texture_scale == 1.0 ? in_texture : Eigen::Vector3d(in_texture / p.texture_scale));
       const double lambert = std::max(0.0, best.normal.dot(light));
       const float shade = static_cast<float>(0.35 + 0.65 * lambert);
       colour_row[u] = cv::Vec3f(albedo.z() * shade, albedo.y() * shade, albedo.x() * shade);

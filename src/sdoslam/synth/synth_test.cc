@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cstring>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -227,6 +228,52 @@ TEST(Renderer, ScreenRectanglesLeaveOutNoPixelAPrimitiveCovers) {
   }
   EXPECT_EQ(views, 9);
   EXPECT_GE(people_views, 4);  // the movers were in view, not only the room
+}
+
+// The texture's cells are found by a product with the inverse cell size: the same cell as the
+// division everywhere, at the borders above all (multiples of the size and their neighbours).
+TEST(Texture, FloorOfQuotientIsTheDivisionsFloor) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> metres(-50.0, 50.0);
+  int checked = 0, differ = 0, near_borders = 0;
+  for (const double size : {0.37, 0.13, 0.047, 0.1, 1.0 / 3.0}) {
+    const double inverse = 1.0 / size;
+    auto check = [&](double x) {
+      ++checked;
+      differ += FloorOfQuotient(x, size, inverse) != static_cast<int32_t>(std::floor(x / size));
+    };
+    for (int k = 0; k < 100000; ++k) check(metres(rng));
+    for (int k = -400; k <= 400; ++k) {
+      double x = k * size;
+      for (int step = 0; step < 3; ++step) x = std::nextafter(x, -1e9);
+      for (int step = 0; step < 7; ++step, x = std::nextafter(x, 1e9)) {
+        check(x);
+        near_borders += std::floor(x / size) != std::floor(std::nextafter(x, 1e9) / size);
+      }
+    }
+  }
+  EXPECT_EQ(differ, 0) << "of " << checked;
+  EXPECT_GT(near_borders, 3000);  // the border points did straddle the cells' edges
+}
+
+// A sampler that remembers the last cells gives every point of a path the colour a fresh
+// TextureColour gives it, across cell borders, seeds and base colours.
+TEST(Texture, TheSamplerRemembersCellsWithoutChangingColours) {
+  TextureSampler sampler;
+  int points = 0, differ = 0;
+  std::set<std::array<float, 3>> colours;
+  for (int k = 0; k < 6000; ++k) {
+    for (const uint32_t seed : {1u, 7u, 7u}) {  // two primitives side by side, in turn
+      const Eigen::Vector3d q(-1.0 + 0.0006 * k, 0.3 + 0.0002 * k, 2.0 - 0.0004 * k);
+      const Eigen::Vector3f base(0.2f + 0.1f * static_cast<float>(seed % 3), 0.5f, 0.7f);
+      const Eigen::Vector3f a = sampler.Colour(base, seed, q), b = TextureColour(base, seed, q);
+      ++points;
+      differ += a != b;
+      colours.insert({a.x(), a.y(), a.z()});
+    }
+  }
+  EXPECT_EQ(differ, 0) << "of " << points;
+  EXPECT_GT(colours.size(), 100u);  // the path crossed many cells
 }
 
 TEST(Scenarios, LoopReturnsToItsStartAndUnknownNamesAreErrors) {
