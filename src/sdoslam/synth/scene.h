@@ -56,15 +56,15 @@ class RaysFrom {
 Eigen::Vector3f TextureColour(const Eigen::Vector3f& base_colour, uint32_t seed,
                               const Eigen::Vector3d& point_in_texture_frame);
 
+// floor(x / divisor) for |x / divisor| < 2^31, the same bit for bit, mostly without the division:
+// `inverse` is 1 / divisor.
+int32_t FloorOfQuotient(double x, double divisor, double inverse);
+
 // TextureColour for one pixel after another, the same colours bit for bit: it remembers each
 // octave's last cell, and neighbouring pixels mostly fall in the same cells (the finest spans
 // several pixels at 4 m), so their hashes are not computed again; and it finds a cell by a
 // product (FloorOfQuotient). The renderer keeps one per row of pixels; rendering a frame takes
 // about 4 % less CPU.
-// floor(x / divisor) for |x / divisor| < 2^31, the same bit for bit, mostly without the division:
-// `inverse` is 1 / divisor.
-int32_t FloorOfQuotient(double x, double divisor, double inverse);
-
 class TextureSampler {
  public:
   Eigen::Vector3f Colour(const Eigen::Vector3f& base_colour, uint32_t seed,
