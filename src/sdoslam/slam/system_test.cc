@@ -935,7 +935,7 @@ TEST(SlamOptionsTest, CheckMessagesNameTheConfigPath) {
   EXPECT_EQ(ErrorOf("tracking:\n  consistency:\n    static_motion:\n      hypotheses: 0\n"),
             "c.yaml: tracking.consistency.static_motion.hypotheses must be >= 1");
   EXPECT_EQ(ErrorOf("tracking:\n  consistency:\n    track_window: 4\n"),
-            "c.yaml: tracking.consistency.track_window must be odd and >= 5");
+            "c.yaml: tracking.consistency.track_window must be >= 5");
   EXPECT_EQ(ErrorOf("loop_closing:\n  ransac:\n    confidence: 1\n"),
             "c.yaml: loop_closing.ransac.confidence must be in (0, 1)");
   EXPECT_EQ(ErrorOf("loop_closing:\n  pose_graph:\n    max_iterations: 0\n"),

@@ -25,8 +25,9 @@ void SceneFlowOptions::Check(const std::string& path) const {
   if (!(min_established_kept >= 0 && min_established_kept <= 1))
     throw Error(path + "min_established_kept must be in [0, 1]");
   if (established_observations < 1) throw Error(path + "established_observations must be >= 1");
-  if (track_window < 5 || track_window % 2 == 0)
-    throw Error(path + "track_window must be odd and >= 5");
+  // Any width: an even window is centred on the point as well (its samples lie half a pixel
+  // off the point's grid, which the bilinear interpolation takes in its stride).
+  if (track_window < 5) throw Error(path + "track_window must be >= 5");
   if (track_levels < 0 || track_levels > 6) throw Error(path + "track_levels must be in [0, 6]");
   if (track_iterations < 1) throw Error(path + "track_iterations must be >= 1");
   if (!(max_track_error > 0)) throw Error(path + "max_track_error must be positive");

@@ -108,13 +108,19 @@ TEST(TrackPointsBack, RecoversAKnownShift) {
   std::vector<cv::Point2f> points = {{100, 100}, {200, 150}, {60, 180}, {1, 120}};
   std::vector<cv::Point2f> back;
   std::vector<uint8_t> found;
-  TrackPointsBack(SceneFlowOptions{}, current, previous, points, &back, &found);
-  for (size_t i = 0; i < 3; ++i) {
-    ASSERT_TRUE(found[i]) << i;
-    EXPECT_NEAR(back[i].x, points[i].x - 3.5, 0.1) << i;
-    EXPECT_NEAR(back[i].y, points[i].y + 2.25, 0.1) << i;
+  // The default window (even, so its samples lie half a pixel off the point's grid) and an odd
+  // one find the same shift: an even window is centred on the point too.
+  for (const int window : {SceneFlowOptions{}.track_window, 15}) {
+    SceneFlowOptions o;
+    o.track_window = window;
+    TrackPointsBack(o, current, previous, points, &back, &found);
+    for (size_t i = 0; i < 3; ++i) {
+      ASSERT_TRUE(found[i]) << i << " window " << window;
+      EXPECT_NEAR(back[i].x, points[i].x - 3.5, 0.05) << i << " window " << window;
+      EXPECT_NEAR(back[i].y, points[i].y + 2.25, 0.05) << i << " window " << window;
+    }
+    EXPECT_FALSE(found[3]);  // its correspondence lies outside the previous image
   }
-  EXPECT_FALSE(found[3]);  // its correspondence lies outside the previous image
 
   // Something else now covers the neighbourhood of a point (an occluder): no correspondence.
   cv::Mat other;
@@ -256,8 +262,10 @@ TEST(SceneFlowOptions, CheckRejectsNonsense) {
   o.segment_ratio = 1.5;
   EXPECT_THROW(o.Check(), std::exception);
   o = SceneFlowOptions{};
-  o.track_window = 20;
+  o.track_window = 4;
   EXPECT_THROW(o.Check(), std::exception);
+  o.track_window = 20;  // even windows are as good as odd ones
+  EXPECT_NO_THROW(o.Check());
   o = SceneFlowOptions{};
   o.frame_gap = 0;
   EXPECT_THROW(o.Check(), std::exception);
