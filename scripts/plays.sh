@@ -52,21 +52,29 @@ for count in $counts; do
     for seed in 1 2 3; do
       out="$runs/${kind}_${seed}_$count"
       echo "$bin run --dataset $work/plays/${kind}_$seed --config $runs/config_$count.yaml" \
-        "--mode $mode --sequential --out $out >$out.log 2>&1 || echo 'FAILED: $out.log'"
+        "--mode $mode --sequential --out $out >$out.log 2>&1 || true"
     done
   done
 done | xargs -P "$jobs" -I{} bash -c {}
-# One row per run: play, count, ATE RMSE (m, from the run's own evaluation), keyframes.
+# One row per run: play, count, ATE RMSE (m, from the run's own evaluation), keyframes. A run
+# without an ATE (it failed) is named and the battery fails: a sum without it would mislead.
+failed=0
 for count in $counts; do
   for kind in $kinds; do
     for seed in 1 2 3; do
       out="$runs/${kind}_${seed}_$count"
-      ate=$(grep -A2 'ATE rmse' "$out.log" | tail -n 1 | awk '{print $3}')
+      ate=$(grep -A2 'ATE rmse' "$out.log" | tail -n 1 | awk '{print $3}' || true)
+      if [ -z "$ate" ] || [ ! -f "$out/mapping.csv" ]; then
+        echo "plays.sh: no ATE from $out (see $out.log)" >&2
+        failed=1
+        continue
+      fi
       keyframes=$(($(wc -l <"$out/mapping.csv") - 1))
       printf '%s\t%s\t%s\t%s\t%s\n' "$kind" "$seed" "$count" "$ate" "$keyframes"
     done
   done
 done >"$runs/ate.tsv"
+[ "$failed" = 0 ] || exit 1
 awk -F'\t' -v mode="$mode" '
   { sum[$3] += 1000 * $4; kind[$1] += 1000 * $4; kf[$1] += $5; if (!($3 in seen)) { seen[$3]; order[++n] = $3 } }
   END {
