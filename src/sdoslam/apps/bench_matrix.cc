@@ -363,7 +363,9 @@ std::string FormatTable(const BenchMatrixArgs& args, const std::vector<MatrixRow
   text += fmt::format(
       "\nfps: frames / wall-clock seconds of the frame loop (reading, front end, tracking, "
       "mapping and the wait for its queue at the end; time in which threads overlap counts "
-      "once), median over runs; latency: median time from a frame's load to its pose. peak RSS (MB "
+      "once), median over runs; latency: median time from the start of a frame's reading to its "
+      "pose, less the time it waited for tracking to finish the frame before (a run that reads "
+      "ahead keeps that queue full; a camera the system keeps up with does not). peak RSS (MB "
       "of 2^20 bytes): the largest run's {}; the runs share one "
       "process, which "
       "held {:.0f} MB before the first.{}\n",

@@ -3,6 +3,9 @@
 #include <ceres/version.h>
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
 #include <Eigen/Core>
@@ -230,11 +233,13 @@ StagedFrame Pipeline::Prepare(RgbdInput input, const cv::Mat& dynamic_mask) {
   slam_->AddDynamicInputs(&*features, staged.labels, segments, staged.locked_segments);
   staged.slam.emplace(std::move(*features));
   staged.input = std::move(input);
+  staged.prepared = std::chrono::steady_clock::now();
   return staged;
 }
 
 FrameOutput Pipeline::Finish(StagedFrame&& staged) {
   if (!staged.slam) throw Error("Pipeline::Finish: a frame that was not prepared");
+  const auto finish_start = std::chrono::steady_clock::now();
   FrameOutput out;
   out.tracking = slam_->Track(std::move(*staged.slam), &out.timing);
   out.labels = staged.labels;
@@ -251,26 +256,32 @@ FrameOutput Pipeline::Finish(StagedFrame&& staged) {
   out.sdo = std::move(staged.sdo);
   out.front_end_timing = staged.front_end_timing;
   out.input = std::move(staged.input);
-  out.latency_ms =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - staged.started)
-          .count();
+  using Ms = std::chrono::duration<double, std::milli>;
+  out.queued_ms = Ms(finish_start - staged.prepared).count();
+  out.latency_ms = Ms(std::chrono::steady_clock::now() - staged.started).count() - out.queued_ms;
   return out;
 }
 
 namespace {
 
-// Runs `prepare(i)` for i = 0, 1, ... in a thread of its own, up to `capacity` frames ahead of
-// the caller, who takes them in order with Next(). Stopping early (Close, or destruction while
-// frames are queued) ends the thread cleanly; an exception in `prepare` reaches the caller from
-// Next() after the frames prepared before it.
-class PrepareStage {
+// Runs `make(i)` for i = 0, 1, ... in a thread of its own, up to `capacity` items ahead of the
+// caller, who takes them in order with Next(). Stopping early (Close, or destruction while
+// items are queued) ends the thread cleanly; an exception in `make` reaches the caller from
+// Next() after the items made before it. `nice` > 0 lowers the thread's scheduling priority
+// (Linux nice value; where it cannot be set, the thread runs at the process's priority).
+template <class T>
+class AheadStage {
  public:
-  PrepareStage(size_t frames, size_t capacity, std::function<StagedFrame(size_t)> prepare)
-      : queue_(capacity), prepare_(std::move(prepare)) {
-    thread_ = std::thread([this, frames] {
+  AheadStage(size_t count, size_t capacity, std::function<T(size_t)> make, int nice = 0)
+      : queue_(capacity), make_(std::move(make)) {
+    thread_ = std::thread([this, count, nice] {
+      if (nice != 0) {
+        // Per thread: on Linux a thread id names one thread to setpriority.
+        (void)setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), nice);
+      }
       try {
-        for (size_t i = 0; i < frames; ++i) {
-          if (!queue_.Push(prepare_(i))) return;  // closed by the consumer
+        for (size_t i = 0; i < count; ++i) {
+          if (!queue_.Push(make_(i))) return;  // closed by the consumer
         }
       } catch (...) {
         error_ = std::current_exception();
@@ -278,26 +289,35 @@ class PrepareStage {
       queue_.Close();
     });
   }
-  ~PrepareStage() {
+  ~AheadStage() {
     queue_.Close();
     if (thread_.joinable()) thread_.join();
   }
-  // The next frame, or nullopt at the end (every frame delivered, or the stage stopped).
-  // Rethrows the stage's exception once the frames before it are taken.
-  std::optional<StagedFrame> Next() {
-    std::optional<StagedFrame> staged = queue_.Pop();
-    if (!staged) {
+  AheadStage(const AheadStage&) = delete;
+  AheadStage& operator=(const AheadStage&) = delete;
+  // The next item, or nullopt at the end (every item delivered, or the stage stopped).
+  // Rethrows the stage's exception once the items before it are taken.
+  std::optional<T> Next() {
+    std::optional<T> item = queue_.Pop();
+    if (!item) {
       if (thread_.joinable()) thread_.join();
       if (error_) std::rethrow_exception(error_);
     }
-    return staged;
+    return item;
   }
 
  private:
-  BoundedQueue<StagedFrame> queue_;
-  std::function<StagedFrame(size_t)> prepare_;
+  BoundedQueue<T> queue_;
+  std::function<T(size_t)> make_;
   std::exception_ptr error_;  // written by the thread before it closes the queue
   std::thread thread_;
+};
+
+// A frame as read from the dataset, with what oracle mode reads beside it.
+struct LoadedFrame {
+  RgbdFrame frame;
+  cv::Mat oracle;
+  std::chrono::steady_clock::duration reading{};  // how long reading it took
 };
 
 }  // namespace
@@ -348,22 +368,45 @@ RunSummary RunOnDataset(const RunOptions& options) {
   pipeline_options.extract_beside_front_end = prepare_ahead;
   Pipeline pipeline(pipeline_options);
   const System& slam = pipeline.slam();
-  // Loading and the stages that need no map, for frame i.
-  auto prepare = [&](size_t i) {
-    const auto load_start = std::chrono::steady_clock::now();
-    RgbdFrame frame = dataset.Load(i);
-    cv::Mat oracle;
+  // Reading frame i (colour and depth, and in oracle mode its ground-truth labels).
+  auto load = [&](size_t i) {
+    LoadedFrame loaded;
+    const auto start = std::chrono::steady_clock::now();
+    loaded.frame = dataset.Load(i);
     if (run.mode == RunMode::kOracle)
-      oracle = LoadOracleLabels(run.dataset, rgb_paths[i], image_size);
+      loaded.oracle = LoadOracleLabels(run.dataset, rgb_paths[i], image_size);
+    loaded.reading = std::chrono::steady_clock::now() - start;
+    return loaded;
+  };
+  // Threaded runs read frames ahead in a thread of their own, one frame ahead of the preparing
+  // stage: decoding the PNGs (5 ms of CPU a frame) in that stage left a core idle whenever
+  // tracking and mapping had nothing to do. At nice 10 the reader takes a core only when the
+  // stages after it leave one free, which is when its frame is needed anyway (bench --threaded,
+  // 3 alternated rounds: the mixed play's sdo 45.0-45.4 -> 47.4-49.7 fps, conventional
+  // 73.5-74.9 -> 112-115; at nice 0 sdo gained half as much).
+  std::optional<AheadStage<LoadedFrame>> loader;
+  if (prepare_ahead) loader.emplace(summary.requested, 1, load, /*nice=*/10);
+  auto prepare = [&](size_t i) {
+    std::optional<LoadedFrame> loaded;
+    if (loader) {
+      loaded = loader->Next();
+      if (!loaded) throw Error("the frame reader stopped early");  // Next() throws its reason
+    } else {
+      loaded = load(i);
+    }
+    // The latency a camera would see counts the frame's reading, but not the time a frame read
+    // ahead waited for this stage: a camera's frame arrives when it is taken.
+    const auto started = std::chrono::steady_clock::now() - loaded->reading;
+    RgbdFrame& frame = loaded->frame;
     StagedFrame staged = pipeline.Prepare(
         RgbdInput{i, frame.timestamp, std::move(frame.bgr), std::move(frame.depth), rgb_paths[i]},
-        oracle);
-    staged.started = load_start;  // the latency a camera would see counts the frame's reading
+        loaded->oracle);
+    staged.started = started;
     return staged;
   };
   // Threaded runs prepare frames ahead in a thread of their own (the front end and feature
   // extraction of frame k + 1 overlap the tracking of frame k); sequential runs stay inline.
-  std::optional<PrepareStage> stage;
+  std::optional<AheadStage<StagedFrame>> stage;
   if (prepare_ahead) stage.emplace(summary.requested, run.prepare_queue_capacity, prepare);
 
   std::string log =
@@ -371,9 +414,9 @@ RunSummary RunOnDataset(const RunOptions& options) {
       "keyframe,check_iterations,check_converged,check_reverted,check_measured,check_dynamic,"
       "culled_points,front_end_ms,segment_ms,detect_ms,flow_ms,classify_ms,features_ms,"
       "tracking_ms,mapping_ms,keyframes,map_points,check_rough_samples,check_static_samples,"
-      "check_replaced,latency_ms,lock_wait_ms,relocalized\n";
+      "check_replaced,latency_ms,lock_wait_ms,relocalized,queued_ms\n";
   std::string feature_log = "index,x,y,label\n";
-  std::vector<double> frame_ms, front_end_ms, mapping_ms, total_ms, latency_ms;
+  std::vector<double> frame_ms, front_end_ms, mapping_ms, total_ms, latency_ms, queued_ms;
   std::vector<double> segment_ms, detect_ms, flow_ms, classify_ms;
   int best_depth_features = 0;
   const auto run_start = std::chrono::steady_clock::now();
@@ -417,18 +460,21 @@ RunSummary RunOnDataset(const RunOptions& options) {
     frame_ms.push_back(timing.features_ms + timing.tracking_ms);
     total_ms.push_back(frame_ms.back() + front_timing.total());
     latency_ms.push_back(out.latency_ms);
+    queued_ms.push_back(out.queued_ms);
     const int dynamic_features = static_cast<int>(std::count_if(
         r.feature_labels.begin(), r.feature_labels.end(), [](uint8_t l) { return l != 0; }));
     log += fmt::format(
         "{},{:.6f},{},{},{},{},{},{},{},{},{},{},{},{},{},"
-        "{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{},{},{},{},{},{:.2f},{:.2f},{}\n",
+        "{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{},{},{},{},{},{:.2f},{:.2f},{},{:"
+        ".2f}\n",
         i, r.timestamp, ToString(r.state), r.features, r.features_with_depth, dynamic_features,
         r.matches, r.inliers, r.keyframe ? 1 : 0, r.check_iterations, r.check_converged ? 1 : 0,
         r.check_reverted ? 1 : 0, r.check_measured, r.check_dynamic, r.culled_points,
         front_timing.total(), front_timing.segment_ms, front_timing.detect_ms, front_timing.flow_ms,
         front_timing.classify_ms, timing.features_ms, timing.tracking_ms, timing.mapping_ms,
         r.keyframes_alive, r.map_points_alive, r.check_rough_samples, r.check_static_samples,
-        r.check_replaced ? 1 : 0, out.latency_ms, timing.lock_wait_ms, r.relocalized ? 1 : 0);
+        r.check_replaced ? 1 : 0, out.latency_ms, timing.lock_wait_ms, r.relocalized ? 1 : 0,
+        out.queued_ms);
     if (r.relocalized) summary.relocalizations.push_back(i);
     if (!labels.empty() && mask_evaluator) {
       mask_evaluator->AddFrame(rgb_paths[i], labels, r.feature_points, r.feature_labels);
@@ -465,12 +511,14 @@ RunSummary RunOnDataset(const RunOptions& options) {
     }
   }
   stage.reset();               // an interrupted run stops preparing frames
+  loader.reset();              // ... and reading them
   pipeline.slam().Shutdown();  // the mapping thread finishes the queued keyframes
   const double run_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - run_start).count();
   summary.wall_ms_per_frame =
       summary.frames > 0 ? 1000.0 * run_seconds / static_cast<double>(summary.frames) : 0;
   summary.median_latency_ms = ComputeErrorStats(latency_ms).median;
+  summary.median_queued_ms = ComputeErrorStats(queued_ms).median;
   summary.trajectory = slam.CameraTrajectory();
   summary.mapping = slam.MappingRecords();
   summary.loops = slam.LoopRecords();
@@ -598,14 +646,17 @@ std::string FormatRunSummary(const RunSummary& s) {
              "{:.1f} ms{}\n"
              "throughput: {:.1f} ms per frame ({:.1f} fps, loading and every stage included); "
              "median "
-             "latency {:.1f} ms\n",
+             "latency {:.1f} ms{}\n",
              s.frames, s.tracked, s.lost, s.not_initialized, s.keyframes, s.map_points,
              s.median_frame_ms, s.median_mapping_ms,
              s.median_front_end_ms > 0
                  ? fmt::format("; dynamic front end {:.1f} ms per frame", s.median_front_end_ms)
                  : "",
              s.wall_ms_per_frame, s.wall_ms_per_frame > 0 ? 1000.0 / s.wall_ms_per_frame : 0.0,
-             s.median_latency_ms) +
+             s.median_latency_ms,
+             s.median_queued_ms > 0.05
+                 ? fmt::format(" (and {:.1f} ms queued for tracking)", s.median_queued_ms)
+                 : "") +
          FormatPlaceEvents(s);
 }
 

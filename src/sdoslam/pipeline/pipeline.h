@@ -63,6 +63,7 @@ struct StagedFrame {
   std::optional<PreparedFrame> slam;
   std::chrono::steady_clock::time_point
       started;  // the frame's latency counts from here (Prepare or the load)
+  std::chrono::steady_clock::time_point prepared;  // the end of Prepare
 };
 
 // One frame's outcome.
@@ -75,7 +76,12 @@ struct FrameOutput {
   std::optional<SdoResult> sdo;
   FrameTiming timing;
   FrontEndTiming front_end_timing;
-  double latency_ms = 0;  // from StagedFrame::started to the end of Finish
+  // The frame's own time from StagedFrame::started to the end of Finish: its preparation and
+  // its tracking, without queued_ms, the time it waited between them for tracking to finish the
+  // frames before it. An offline run that reads ahead keeps that queue full and its frames wait
+  // there; a camera's frames, when the system keeps up with the camera, do not.
+  double latency_ms = 0;
+  double queued_ms = 0;
 };
 
 // The whole system for one camera: the dynamic front end (per `mode`) and SLAM, one frame at a
@@ -181,9 +187,11 @@ struct RunSummary {
   double median_total_ms = 0;              // front end + features + tracking, per frame
   double median_mapping_ms = 0;            // per keyframe
   // Throughput: wall-clock seconds of the whole run (loading, every stage and the threads'
-  // overlap included) per frame; and the median latency, from a frame's load to its pose.
+  // overlap included) per frame; and the median latency, from a frame's reading to its pose
+  // (FrameOutput::latency_ms), and the median time a frame waited for tracking besides.
   double wall_ms_per_frame = 0;
   double median_latency_ms = 0;
+  double median_queued_ms = 0;
   std::vector<MappingRecord> mapping;   // per keyframe, in processing order
   std::vector<LoopRecord> loops;        // loops closed, in order
   std::vector<size_t> relocalizations;  // frames tracked again after lost ones
