@@ -26,6 +26,7 @@ struct BenchArgs {
   int block = 0;  // > 0: the soak report, per block of this many frames
   int runs = 5;
   bool threaded = false;
+  bool camera_rate = false;
   std::string work = "sdoslam_bench";
   RunOverrides overrides;
   // The matrix (bench_matrix.h): given --sequences, sequences × modes → one table.
@@ -130,6 +131,7 @@ void RunBench(const BenchArgs& args) {
   }
   args.overrides.ApplyTo(&base);
   base.slam.sequential = !args.threaded;
+  base.camera_rate = args.camera_rate;
   base.dataset = dataset;
   base.evaluate_masks = false;  // no mask scores here: the timings are the system's alone
   const bool front_end = base.mode == RunMode::kSdo;
@@ -173,8 +175,9 @@ void RunBench(const BenchArgs& args) {
         s.evaluation ? fmt::format(", ATE {:.4f} m", s.evaluation->ate.translation.rmse) : "");
   }
   std::cout << fmt::format("{} ({}, mode {}, {} runs), medians:\n", dataset.string(),
-                           args.threaded ? "threaded" : "sequential", ToString(base.mode),
-                           args.runs);
+                           std::string(args.threaded ? "threaded" : "sequential") +
+                               (args.camera_rate ? ", at the camera's rate" : ""),
+                           ToString(base.mode), args.runs);
   if (front_end) {
     std::cout << fmt::format(
         "  front end {:.1f} ms/frame (segment {:.1f}, detect {:.1f} [{}], flow {:.1f} [{}], "
@@ -223,6 +226,9 @@ void AddBenchCommand(CLI::App& app) {
       ->check(CLI::Range(1, 100))
       ->capture_default_str();
   cmd->add_flag("--threaded", args->threaded, "map in a thread (default: sequential)");
+  cmd->add_flag("--camera-rate", args->camera_rate,
+                "read the frames at the camera's rate (camera.fps), as a live camera gives them: "
+                "fps then says whether the system keeps up, latency is a camera's");
   cmd->add_option("--work", args->work, "folder for outputs")->capture_default_str();
   args->overrides.AddTo(cmd);
   CLI::Option* sequences =
@@ -253,6 +259,7 @@ void AddBenchCommand(CLI::App& app) {
     matrix.frames = args->frames;
     matrix.runs = args->runs;
     matrix.threaded = args->threaded;
+    matrix.camera_rate = args->camera_rate;
     matrix.overrides = args->overrides;
     RunBenchMatrix(matrix);
   });

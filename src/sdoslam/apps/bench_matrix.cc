@@ -139,6 +139,7 @@ std::vector<MatrixSequence> ResolveSequences(const BenchMatrixArgs& args) {
       throw ItemError("--sequences", item, e.what());
     }
     s.base.slam.sequential = !args.threaded;
+    s.base.camera_rate = args.camera_rate;
     s.base.dataset = s.dataset;
     s.out_name = fmt::format("{:02}_{}", sequences.size() + 1, s.out_name);
     sequences.push_back(std::move(s));
@@ -351,10 +352,11 @@ std::string FormatTable(const BenchMatrixArgs& args, const std::vector<MatrixRow
       peak_from_kernel = peak_from_kernel && m.peak_from_kernel;
   }
   std::string text = fmt::format(
-      "sdoslam bench: {} run{} per row, {} mapping. ATE and RTE (over 1 s): median over runs "
+      "sdoslam bench: {} run{} per row, {} mapping{}. ATE and RTE (over 1 s): median over runs "
       "(min–max). Stage times: median over runs of each run's median / p95, per frame (front "
       "end; features + tracking) or per keyframe (local mapping).\n\n",
-      args.runs, args.runs == 1 ? "" : "s", args.threaded ? "threaded" : "sequential");
+      args.runs, args.runs == 1 ? "" : "s", args.threaded ? "threaded" : "sequential",
+      args.camera_rate ? ", frames read at the camera's rate" : "");
   text +=
       "| sequence | mode | ATE RMSE mm | RTE RMSE mm | front end ms | features + tracking ms | "
       "mapping ms/keyframe | fps | latency ms | peak RSS MB | tracked/frames |\n"

@@ -20,7 +20,8 @@ struct BenchMatrixArgs {
   int frames = 150;
   int runs = 5;
   bool threaded = false;
-  RunOverrides overrides;  // the front end's backends and the check; the mode is per row
+  bool camera_rate = false;  // RunOptions::camera_rate
+  RunOverrides overrides;    // the front end's backends and the check; the mode is per row
 };
 
 // Checks every item before the first run (an unknown mode or scenario, a missing folder or config

@@ -35,6 +35,7 @@ struct RunArgs {
   std::string layout = "auto";
   int max_frames = 0;
   bool sequential = false;
+  bool camera_rate = false;
   RunOverrides overrides;
   bool save_overlays = false;
   bool save_masks = false;
@@ -106,6 +107,7 @@ void RunSlam(const RunArgs& args, const RunCommandOptions& given) {
   run.save_overlays = run.save_overlays || args.save_overlays;
   run.save_masks = run.save_masks || args.save_masks;
   run.save_map = run.save_map || args.save_map;
+  run.camera_rate = run.camera_rate || args.camera_rate;
   run.out = args.out;
   InterruptHandler interrupts;
   run.stop_requested = [] { return InterruptHandler::Requested(); };
@@ -160,6 +162,9 @@ void AddRunCommand(CLI::App& app) {
           ->check(CLI::NonNegativeNumber);
   cmd->add_flag("--sequential", args->sequential,
                 "map inline after each keyframe: bit-identical runs (default: a mapping thread)");
+  cmd->add_flag("--camera-rate", args->camera_rate,
+                "read the frames at the camera's rate (camera.fps), as a live camera gives them: "
+                "the latency is then a camera's");
   args->overrides.AddTo(cmd);
   cmd->add_flag("--save-overlays", args->save_overlays,
                 "write overlays/<frame>.png: features (static green, dynamic red), segments, "

@@ -83,6 +83,7 @@ RunOptions LoadRunConfig(const std::filesystem::path& config) {
     section->Read("save_overlays", &run.save_overlays);
     section->Read("save_masks", &run.save_masks);
     section->Read("save_map", &run.save_map);
+    section->Read("camera_rate", &run.camera_rate);
     section->RejectUnknownKeys();
   }
   if (std::optional<ConfigMap> versions = root.Section("versions")) {
@@ -134,6 +135,7 @@ std::string ResolvedConfig(const RunOptions& run) {
   resolved << YAML::Key << "save_overlays" << YAML::Value << run.save_overlays;
   resolved << YAML::Key << "save_masks" << YAML::Value << run.save_masks;
   resolved << YAML::Key << "save_map" << YAML::Value << run.save_map;
+  resolved << YAML::Key << "camera_rate" << YAML::Value << run.camera_rate;
   resolved << YAML::EndMap;
   WriteCameraOptions(run.camera, &resolved);
   WriteSlamOptions(run.slam, &resolved);
@@ -369,7 +371,14 @@ RunSummary RunOnDataset(const RunOptions& options) {
   Pipeline pipeline(pipeline_options);
   const System& slam = pipeline.slam();
   // Reading frame i (colour and depth, and in oracle mode its ground-truth labels).
+  // camera_rate: frame i is read no earlier than i frame periods after the first, as a camera
+  // would deliver it (a sleep, not a wait in a loop).
+  const auto paced_from = std::chrono::steady_clock::now();
+  const auto frame_period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double>(1.0 / run.camera.fps));
   auto load = [&](size_t i) {
+    if (run.camera_rate)
+      std::this_thread::sleep_until(paced_from + static_cast<int64_t>(i) * frame_period);
     LoadedFrame loaded;
     const auto start = std::chrono::steady_clock::now();
     loaded.frame = dataset.Load(i);

@@ -165,6 +165,11 @@ struct RunOptions {
   // the mapping thread's timing.
   std::optional<bool> prepare_ahead;
   size_t prepare_queue_capacity = 2;
+  // Frames are read at the camera's rate (camera.fps) instead of as fast as the run takes
+  // them, the way a live camera delivers them: the throughput then says whether the system
+  // keeps up and the latency is the one a camera's frames see. None are dropped: a run slower
+  // than its camera falls behind, its frames queue and their latency grows.
+  bool camera_rate = false;
 };
 
 // Reads a run's config file: `mode:` and the camera:, SLAM and dynamic: sections into the

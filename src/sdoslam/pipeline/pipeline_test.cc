@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <fstream>
 #include <limits>
@@ -965,6 +966,29 @@ TEST(PipelineStages, AnInterruptedRunThatPreparesAheadStopsCleanly) {
   EXPECT_EQ(s.frames, 15u);
   EXPECT_EQ(seen, 15u);
   EXPECT_GE(s.trajectory.size(), 13u);
+}
+
+// At the camera's rate, frame i is read no earlier than i periods after the first: six frames of
+// a 2 Hz camera take at least 2.5 s, which the same run without pacing takes a fraction of
+// (tens of milliseconds a frame). The setting travels in the run's config.yaml, which reruns it.
+TEST(PipelineStages, FramesReadAtTheCameraRateArriveOnePeriodApart) {
+  testing::TempDir dir;
+  const auto sequence = WriteShortWalk(dir, 6);
+  for (bool sequential : {true, false}) {
+    RunOptions run =
+        SyntheticRun(sequence, dir / fmt::format("out_{}", sequential), RunMode::kConventional);
+    run.camera.fps = 2;
+    run.camera_rate = true;
+    run.slam.sequential = sequential;
+    const auto start = std::chrono::steady_clock::now();
+    const RunSummary s = RunOnDataset(run);
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    EXPECT_EQ(s.frames, 6u);
+    EXPECT_GE(seconds, 2.5) << "sequential " << sequential;
+    EXPECT_GE(s.wall_ms_per_frame * 6, 2500 * 0.99) << "sequential " << sequential;
+    EXPECT_TRUE(LoadRunConfig(run.out / "config.yaml").camera_rate);
+  }
 }
 
 // Mask scoring is evaluation, not SLAM: turned off (as bench does), a run on a synthetic sequence
