@@ -244,7 +244,8 @@ RunMeasurement MeasureRun(RunOptions run) {
   m.peak_bytes = m.peak_from_kernel ? PeakResidentBytes() : std::max(sampled_peak, ResidentBytes());
   // The frame loop's wall-clock time (reading frames, front end, tracking, mapping in its thread,
   // the wait for its queue at the end; not the one-off setup, writing and scoring): the rate a
-  // camera could be fed at. Latency: from a frame's load to its pose.
+  // camera could be fed at. Latency: from a frame's reading to its pose, less its wait for
+  // tracking (FrameOutput::latency_ms).
   m.fps = s.wall_ms_per_frame > 0 ? 1000.0 / s.wall_ms_per_frame : 0;
   m.latency_ms = s.median_latency_ms;
   m.tracked = s.tracked;

@@ -13,6 +13,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <optional>
+#include <thread>
 
 #include "sdoslam/core/error.h"
 #include "sdoslam/eval/metrics.h"
@@ -1014,6 +1015,30 @@ TEST(PipelineStages, MaskScoringCanBeLeftOutWithoutChangingTheRun) {
                 scored.trajectory[i].T_world_camera.matrix())
         << "frame " << i;
   }
+}
+
+// A frame that waits between Prepare and Finish (as a frame read ahead waits in the queue for
+// tracking) reports the wait as queued_ms, and its latency leaves it out: the latency is the
+// frame's own time, which a camera's frame sees when the system keeps up with the camera.
+TEST(PipelineStages, TheWaitBeforeTrackingIsQueuedTimeNotLatency) {
+  testing::TempDir dir;
+  const auto sequence = WriteShortWalk(dir, 1);
+  const RgbdDataset dataset(sequence, synth::SyntheticCamera());
+  PipelineOptions options;
+  options.camera = synth::SyntheticCamera();
+  Pipeline pipeline(options);
+  RgbdFrame frame = dataset.Load(0);
+  const auto start = std::chrono::steady_clock::now();
+  StagedFrame staged = pipeline.Prepare(RgbdInput{0, frame.timestamp, frame.bgr, frame.depth, {}});
+  constexpr double kWaitMs = 300;
+  std::this_thread::sleep_for(std::chrono::duration<double, std::milli>(kWaitMs));
+  const FrameOutput out = pipeline.Finish(std::move(staged));
+  const double elapsed_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_GE(out.queued_ms, kWaitMs);
+  EXPECT_GT(out.latency_ms, 0);
+  EXPECT_LE(out.latency_ms, elapsed_ms - kWaitMs) << "the wait counted as latency";
+  EXPECT_LE(out.latency_ms + out.queued_ms, elapsed_ms);
 }
 
 // A library user's own segmentation: features under the caller's mask are never tracked, in
