@@ -336,6 +336,7 @@ TEST(SlamRobustness, AFrameWhosePoseLittleOfTheStaticViewConfirmsIsNotMadeAKeyFr
     options.tracking.keyframes_min_static_samples = samples;
     if (features > 0) options.tracking.keyframes_min_static_features = features;
     options.tracking.reference_ratio = 0.99;  // nearly every frame asks for a keyframe
+    options.tracking.min_frames_between_keyframes = 0;  // ... and may be one
     System slam(synth::SyntheticCamera(), options);
     std::vector<TrackingResult> results;
     for (size_t i = 0; i < 60; ++i) {

@@ -13,6 +13,7 @@ struct KeyFrameDecisionInput {
   int reference_matches = 0;       // ReferenceMatches of the reference keyframe
   size_t last_keyframe_frame = 0;  // frame index of the last keyframe made
   bool mapping_idle = true;        // local mapping has nothing queued
+  size_t good_keyframes = 2;       // keyframes in the map (Map::GoodKeyFrames)
 };
 
 // The reference keyframe's map points that enough keyframes see to count in the keyframe
@@ -24,7 +25,9 @@ int ReferenceMatches(const Map& map, const KeyFrame& reference);
 // close points while many untracked close ones could be made (min_close_points,
 // close_points_to_create); and, besides, either max_frames_between_keyframes have passed since
 // the last keyframe, local mapping is idle, or tracking is weak (below a quarter of the
-// reference's matches, or too few close points).
+// reference's matches, or too few close points). Within min_frames_between_keyframes of the last
+// keyframe, only the first kind of weak tracking (few inliers) makes one, once the map has two
+// keyframes.
 bool NeedKeyFrame(const TrackerOptions& options, const Frame& frame,
                   const KeyFrameDecisionInput& input);
 

@@ -107,6 +107,36 @@ TEST_F(KeyFrameInserterTest, TooFewTrackedClosePointsNeedOne) {
   EXPECT_FALSE(NeedKeyFrame(options_, *frame_, Input(190)));
 }
 
+TEST_F(KeyFrameInserterTest, SoonAfterAKeyFrameOnlyFewInliersMakeOne) {
+  options_.min_frames_between_keyframes = 3;
+  const size_t spacing = 3;
+  // Too few tracked close points (as in TooFewTrackedClosePointsNeedOne), the reference ratio
+  // missed too (140 of 200), mapping idle: every trigger but few inliers.
+  TrackAllClose();
+  for (size_t k = 0; k <= static_cast<size_t>(options_.close_points_to_create); ++k)
+    frame_->map_points[close_[k]] = nullptr;
+  KeyFrameDecisionInput input = Input(140);
+  input.mapping_idle = true;
+  input.last_keyframe_frame = frame_->index - spacing + 1;
+  EXPECT_FALSE(NeedKeyFrame(options_, *frame_, input));
+  input.last_keyframe_frame = frame_->index - spacing;
+  EXPECT_TRUE(NeedKeyFrame(options_, *frame_, input));
+  // The map's second keyframe is made at once.
+  input.last_keyframe_frame = frame_->index - 1;
+  input.good_keyframes = 1;
+  EXPECT_TRUE(NeedKeyFrame(options_, *frame_, input));
+  // Fewer inliers than a quarter of the reference's matches: one at once, even the frame after.
+  input = Input(40);
+  input.last_keyframe_frame = frame_->index - 1;
+  EXPECT_TRUE(NeedKeyFrame(options_, *frame_, input));
+  // 0: ORB-SLAM2's rule, a keyframe the frame after the last.
+  options_.min_frames_between_keyframes = 0;
+  input = Input(140);
+  input.mapping_idle = true;
+  input.last_keyframe_frame = frame_->index - 1;
+  EXPECT_TRUE(NeedKeyFrame(options_, *frame_, input));
+}
+
 TEST_F(KeyFrameInserterTest, ReferenceMatchesCountPointsSeenByEnoughKeyFrames) {
   Map map;
   KeyFrame* a = map.AddKeyFrame(*frame_);

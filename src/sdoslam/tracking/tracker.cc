@@ -165,7 +165,8 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
                      {.inliers = result.inliers,
                       .reference_matches = ReferenceMatches(*map_, *reference_),
                       .last_keyframe_frame = last_keyframe_frame_,
-                      .mapping_idle = mapping_idle})) {
+                      .mapping_idle = mapping_idle,
+                      .good_keyframes = map_->GoodKeyFrames()})) {
       *new_keyframe = CreateKeyFrame(map_, options_, frame);
       reference_ = *new_keyframe;
       last_keyframe_frame_ = frame.index;

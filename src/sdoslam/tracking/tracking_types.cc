@@ -22,6 +22,10 @@ void TrackerOptions::Check(const std::string& path) const {
   if (min_inliers < 6) throw Error(path + "min_inliers must be >= 6");
   if (max_frames_between_keyframes < 1)
     throw Error(path + "max_frames_between_keyframes must be >= 1");
+  if (min_frames_between_keyframes < 0 ||
+      min_frames_between_keyframes > max_frames_between_keyframes)
+    throw Error(path + "min_frames_between_keyframes must lie in [0, " + path +
+                "max_frames_between_keyframes]");
   if (!(reference_ratio > 0 && reference_ratio < 1))
     throw Error(path + "reference_ratio must be in (0, 1)");
   if (!(projection_radius > 0)) throw Error(path + "projection_radius must be positive");
