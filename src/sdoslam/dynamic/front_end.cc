@@ -3,7 +3,9 @@
 #include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <chrono>
+#include <limits>
 #include <opencv2/imgproc.hpp>
 
 #include "sdoslam/core/error.h"
@@ -86,11 +88,91 @@ void ShiftByFlow(const cv::Mat& flow, int span, const cv::Mat& depth, cv::Size i
 
 }  // namespace
 
+// Each segment moves as a whole by the median flow of its pixels (the object in it, not the
+// outline where DIS blends it with what is behind), nearer segments drawn over farther ones.
+// Warping each pixel by the flow instead fails at both outlines: the flow lies on the older
+// frame's grid, so where an object has just moved to, it shows the background's motion, and
+// where it has just left, its own. By hand: OpenCV has no warp of a label image by regions.
+Segmentation CarrySegmentsAlongFlow(const Segmentation& last, const cv::Mat& flow, int span,
+                                    const cv::Mat& depth) {
+  Segmentation carried;
+  carried.count = last.count;
+  if (last.labels.empty() || flow.empty() || span < 1 || last.count <= 0) {
+    carried.labels = last.labels.clone();
+    return carried;
+  }
+  CV_Assert(last.labels.type() == CV_32S && flow.type() == CV_32FC2);
+  CV_Assert(depth.empty() || depth.type() == CV_32F);
+  const int W = last.labels.cols, H = last.labels.rows;
+  const size_t count = static_cast<size_t>(last.count);
+  // The flow and depth pixel under each label pixel's centre, by column and by row.
+  const float sx = static_cast<float>(flow.cols) / W, sy = static_cast<float>(flow.rows) / H;
+  std::vector<int> flow_column(static_cast<size_t>(W)), depth_column(static_cast<size_t>(W));
+  for (int x = 0; x < W; ++x) {
+    flow_column[x] = std::min(flow.cols - 1, static_cast<int>((x + 0.5f) * sx));
+    depth_column[x] = depth.empty() ? 0 : std::min(depth.cols - 1, x * depth.cols / W);
+  }
+  // Each segment's flow and depths.
+  std::vector<std::vector<float>> fx(count), fy(count), z(count);
+  for (int y = 0; y < H; ++y) {
+    const int* labels = last.labels.ptr<int>(y);
+    const cv::Vec2f* f =
+        flow.ptr<cv::Vec2f>(std::min(flow.rows - 1, static_cast<int>((y + 0.5f) * sy)));
+    const float* d =
+        depth.empty() ? nullptr : depth.ptr<float>(std::min(depth.rows - 1, y * depth.rows / H));
+    for (int x = 0; x < W; ++x) {
+      const int label = labels[x];
+      if (label < 0 || label >= last.count) continue;
+      const cv::Vec2f& v = f[flow_column[x]];
+      fx[label].push_back(v[0]);
+      fy[label].push_back(v[1]);
+      if (d != nullptr && d[depth_column[x]] > 0) z[label].push_back(d[depth_column[x]]);
+    }
+  }
+  auto median = [](std::vector<float>& v) {
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
+  // A frame's worth of the span's motion, in label pixels, and the median depth (none: infinite).
+  std::vector<int> dx(count, 0), dy(count, 0);
+  std::vector<float> far(count, std::numeric_limits<float>::infinity());
+  std::vector<int> order;
+  for (size_t c = 0; c < count; ++c) {
+    if (fx[c].empty()) continue;
+    dx[c] = static_cast<int>(std::lround(median(fx[c]) / (sx * span)));
+    dy[c] = static_cast<int>(std::lround(median(fy[c]) / (sy * span)));
+    if (!z[c].empty()) far[c] = median(z[c]);
+    order.push_back(static_cast<int>(c));
+  }
+  // Rank 0 the farthest: a pixel takes the nearest segment that moves onto it.
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return far[a] > far[b]; });
+  std::vector<int> rank(count, -1);
+  for (size_t r = 0; r < order.size(); ++r) rank[order[r]] = static_cast<int>(r);
+  carried.labels = cv::Mat(H, W, CV_32S, cv::Scalar(-1));
+  cv::Mat drawn_rank(H, W, CV_32S, cv::Scalar(-1));
+  for (int y = 0; y < H; ++y) {
+    const int* labels = last.labels.ptr<int>(y);
+    for (int x = 0; x < W; ++x) {
+      const int label = labels[x];
+      if (label < 0 || label >= last.count) continue;
+      const int tx = x + dx[label], ty = y + dy[label];
+      if (tx < 0 || ty < 0 || tx >= W || ty >= H) continue;
+      int& drawn = drawn_rank.at<int>(ty, tx);
+      if (rank[label] > drawn) {
+        drawn = rank[label];
+        carried.labels.at<int>(ty, tx) = label;
+      }
+    }
+  }
+  return carried;
+}
+
 void FrontEndOptions::Check() const {
   CheckName("segmenter", segmenter, kSegmenters);
   CheckName("detector", detector, kDetectors);
   CheckName("flow", flow, kFlows);
   if (detect_every < 1) throw Error("dynamic.detector.every must be at least 1");
+  if (segment_every < 1) throw Error("dynamic.segmenter.every must be at least 1");
   rgbd.Check("dynamic.segmenter.rgbd.");
   geometric.Check("dynamic.segmenter.geometric.");
   yoloseg.Check("dynamic.segmenter.yoloseg.");
@@ -233,7 +315,13 @@ SdoResult FrontEnd::Process(const FrontEndFrame& frame, FrontEndTiming* timing) 
   t.detect_ms = MsSince(start);
 
   start = std::chrono::steady_clock::now();
-  const Segmentation segments = segmenter_->Segment(frame);
+  Segmentation segments;
+  if (frames_ % static_cast<size_t>(options_.segment_every) == 0 || last_segments_.labels.empty()) {
+    segments = segmenter_->Segment(frame);
+  } else {
+    segments = CarrySegmentsAlongFlow(last_segments_, flow, flow_span, frame.depth);
+  }
+  last_segments_ = segments;  // the labels are not written again: a new image each frame
   t.segment_ms = MsSince(start);
 
   start = std::chrono::steady_clock::now();
