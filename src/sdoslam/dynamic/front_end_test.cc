@@ -119,6 +119,15 @@ std::string FrontEndErrorOf(const std::string& yaml) {
   return testing::ReadErrorOf(yaml, ReadFrontEndOptions);
 }
 
+// A smooth random texture of 12 px blobs, for the moving-block tests: the front end computes
+// flow at 256 px wide.
+cv::Mat SmoothTexture(cv::Size size, cv::RNG& rng) {
+  cv::Mat coarse(size.height / 12, size.width / 12, CV_8UC3), texture;
+  rng.fill(coarse, cv::RNG::UNIFORM, 0, 255);
+  cv::resize(coarse, texture, size, 0, 0, cv::INTER_CUBIC);
+  return texture;
+}
+
 // detector.every: on the frames between detections, a box follows its object by the flow of one
 // frame, though the flow spans flow.frame_gap frames. A textured block moves 6 px a frame over a
 // textured wall; the detections file boxes it exactly on every frame, and the detector runs on
@@ -126,15 +135,8 @@ std::string FrontEndErrorOf(const std::string& yaml) {
 TEST(FrontEndDetectEvery, CarriedBoxesFollowTheirObjectFrameByFrame) {
   testing::TempDir dir;
   const cv::Size size(640, 480);
-  cv::Mat wall(size, CV_8UC3), block(160, 100, CV_8UC3);
   cv::RNG rng(5);
-  // Smooth texture (12 px blobs): the front end computes flow at 256 px wide.
-  cv::Mat coarse(size.height / 12, size.width / 12, CV_8UC3);
-  rng.fill(coarse, cv::RNG::UNIFORM, 0, 255);
-  cv::resize(coarse, wall, size, 0, 0, cv::INTER_CUBIC);
-  cv::Mat coarse_block(block.rows / 12, block.cols / 12, CV_8UC3);
-  rng.fill(coarse_block, cv::RNG::UNIFORM, 0, 255);
-  cv::resize(coarse_block, block, block.size(), 0, 0, cv::INTER_CUBIC);
+  const cv::Mat wall = SmoothTexture(size, rng), block = SmoothTexture({100, 160}, rng);
   auto box_of = [](int k) { return cv::Rect(120 + 6 * k, 150, 100, 160); };
   const int frames = 10;
   std::vector<std::filesystem::path> rgb_paths;
@@ -212,14 +214,8 @@ TEST(CarrySegmentsAlongFlow, EachPixelTakesTheLabelOfWhereItWasAFrameBefore) {
 // here: the flow lies on the older frame's grid, so the block's leading edge stayed behind.)
 TEST(FrontEndSegmentEvery, CarriedSegmentsFollowAMovingBlock) {
   const cv::Size size(640, 480);
-  cv::Mat wall(size, CV_8UC3), block(160, 100, CV_8UC3);
   cv::RNG rng(7);
-  cv::Mat coarse(size.height / 12, size.width / 12, CV_8UC3);
-  rng.fill(coarse, cv::RNG::UNIFORM, 0, 255);
-  cv::resize(coarse, wall, size, 0, 0, cv::INTER_CUBIC);
-  cv::Mat coarse_block(block.rows / 12, block.cols / 12, CV_8UC3);
-  rng.fill(coarse_block, cv::RNG::UNIFORM, 0, 255);
-  cv::resize(coarse_block, block, block.size(), 0, 0, cv::INTER_CUBIC);
+  const cv::Mat wall = SmoothTexture(size, rng), block = SmoothTexture({100, 160}, rng);
   auto box_of = [](int k) { return cv::Rect(120 + 8 * k, 150, 100, 160); };
   const cv::Matx33d K(525, 0, 320, 0, 525, 240, 0, 0, 1);
   FrontEndOptions every_frame, every_third;
