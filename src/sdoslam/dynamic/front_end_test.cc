@@ -427,6 +427,8 @@ TEST(FrontEndOptionsTest, CheckMessagesNameTheConfigPath) {
             "c.yaml: dynamic.detector.hog.scale must exceed 1");
   EXPECT_EQ(FrontEndErrorOf("dynamic:\n  detector:\n    every: 0\n"),
             "c.yaml: dynamic.detector.every must be at least 1");
+  EXPECT_EQ(FrontEndErrorOf("dynamic:\n  segmenter:\n    every: 0\n"),
+            "c.yaml: dynamic.segmenter.every must be at least 1");
   EXPECT_EQ(FrontEndErrorOf("dynamic:\n  boundaries:\n    strong: 2\n"),
             "c.yaml: dynamic.boundaries.strong must be in (0, 1)");
   EXPECT_EQ(FrontEndErrorOf("dynamic:\n  classifier:\n    min_box_iou: 2\n"),

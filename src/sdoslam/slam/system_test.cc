@@ -335,7 +335,7 @@ TEST(SlamRobustness, AFrameWhosePoseLittleOfTheStaticViewConfirmsIsNotMadeAKeyFr
     SlamOptions options;
     options.tracking.keyframes_min_static_samples = samples;
     if (features > 0) options.tracking.keyframes_min_static_features = features;
-    options.tracking.reference_ratio = 0.99;  // nearly every frame asks for a keyframe
+    options.tracking.reference_ratio = 0.99;            // nearly every frame asks for a keyframe
     options.tracking.min_frames_between_keyframes = 0;  // ... and may be one
     System slam(synth::SyntheticCamera(), options);
     std::vector<TrackingResult> results;
@@ -943,6 +943,10 @@ TEST(SlamOptionsTest, CheckMessagesNameTheConfigPath) {
             "c.yaml: loop_closing.pose_graph.max_iterations must be >= 1");
   EXPECT_EQ(ErrorOf("mapping:\n  max_queued_keyframes: 0\n"),
             "c.yaml: mapping.max_queued_keyframes must be >= 1");
+  for (const char* spacing : {"-1", "31"})
+    EXPECT_EQ(ErrorOf(std::string("tracking:\n  min_frames_between_keyframes: ") + spacing + "\n"),
+              "c.yaml: tracking.min_frames_between_keyframes must lie in [0, "
+              "tracking.max_frames_between_keyframes]");
   EXPECT_EQ(ErrorOf("rgbd:\n  bf: 0\n"), "c.yaml: rgbd.bf must be positive");
   EXPECT_EQ(ErrorOf("orb:\n  detection_cell: 5\n"),
             "c.yaml: orb.detection_cell must be >= 10 pixels");

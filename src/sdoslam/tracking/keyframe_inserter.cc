@@ -39,7 +39,8 @@ bool NeedKeyFrame(const TrackerOptions& options, const Frame& frame,
   const bool too_soon = frame.index < input.last_keyframe_frame +
                                           static_cast<size_t>(options.min_frames_between_keyframes);
   // The map's second keyframe is not held back: ORB-SLAM2 makes it the frame after the first,
-  // and the real clip's frames keep 3.2 mm with it there against 3.9 a frame later.
+  // and the real clip's frames (conventional, --sequential) keep 3.3 mm with it there against
+  // 3.9 a frame later.
   if (too_soon && !few_inliers && input.good_keyframes >= 2) return false;
   return (long_since || input.mapping_idle || weak) && c2;
 }
