@@ -758,7 +758,7 @@ TEST(SlamOptionsTest, TheWrittenConfigReadsBackToTheSameOptions) {
   SlamOptions o;
   o.orb.num_features = 1234;
   o.tracking.consistency.static_motion.grid_rows = 20;
-  o.mapping.bundle_adjustment.iterations = 3;
+  o.mapping.bundle_adjustment.iterations = 4;  // not the default (3)
   o.loop_closing.global_ba.refine_iterations = 4;
   o.vocabulary = "my.voc";
   const std::string text = WrittenSlamOptions(o);
