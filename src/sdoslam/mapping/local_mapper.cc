@@ -31,6 +31,8 @@ void LocalMapperOptions::Check(const std::string& path) const {
   if (max_ba_observations < 1) throw Error(path + "max_ba_observations must be >= 1");
   if (triangulation_neighbours < 1) throw Error(path + "triangulation_neighbours must be >= 1");
   if (max_queued_keyframes < 1) throw Error(path + "max_queued_keyframes must be >= 1");
+  if (min_frames_between_local_ba < 0)
+    throw Error(path + "min_frames_between_local_ba must be >= 0");
   bundle_adjustment.Check(path + "bundle_adjustment.");
 }
 
@@ -82,10 +84,15 @@ MappingResult LocalMapper::Process(KeyFrame* kf, std::mutex* map_mutex,
     adjust = map_->GoodKeyFrames() > 2;
   }
   auto start = std::chrono::steady_clock::now();
-  if (adjust && stop != nullptr && stop->load()) {
+  const bool too_soon =
+      last_adjusted_frame_.has_value() &&
+      kf->frame.index <
+          *last_adjusted_frame_ + static_cast<size_t>(options_.min_frames_between_local_ba);
+  if (adjust && ((stop != nullptr && stop->load()) || too_soon)) {
     result.ba_skipped = true;
   } else if (adjust) {
     LocalBundleAdjustment(kf, &result, map_mutex, stop);
+    last_adjusted_frame_ = kf->frame.index;
   }
   result.ba_ms = MsSince(start);
   auto lock = LockIf(map_mutex, &result.lock_wait_ms);

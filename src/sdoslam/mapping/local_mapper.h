@@ -2,6 +2,7 @@
 
 #include <atomic>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -64,6 +65,16 @@ struct LocalMapperOptions {
   // BA took 30-70 ms of CPU (mapping.csv, the mixed play threaded). Sequential runs never stop a
   // BA.
   bool stop_ba_for_new_keyframe = true;
+  // A keyframe made fewer than this many frames after the last keyframe whose local BA ran gets
+  // none (0 or 1: every keyframe gets one); the next keyframe's BA covers nearly the same window.
+  // 3: where movers hide much of the room sdo makes a keyframe every second frame, and each BA
+  // then solves almost the window of the one before. On the mixed play 27 keyframes get 20 BAs
+  // instead of 25-27, local BA's instructions fall 40 % (callgrind, 40 frames: 2.58 -> 1.55 G) and
+  // threaded sdo's process CPU 7 % (3.12 -> 2.90 s, medians of 5); accuracy the same
+  // (scripts/plays.sh 79.7 -> 79.6 mm, held-out seeds 4-6 49.8 -> 49.6, fr2_desk_50 byte for
+  // byte, 3,000 frames of walking_xyz 4.4 -> 4.6 mm). 5: the plays 79.3 but the held-out seeds
+  // 50.7 (person_fills_view seed 4 5.3 -> 6.6). README, "Local BA once in three frames".
+  int min_frames_between_local_ba = 3;
   void Check(const std::string& path = "mapping.") const;  // Error names path + setting
   // Every setting, as its config key (core/config.h: ReadFields, WriteFields).
   template <class Options, class Visitor>
@@ -82,6 +93,7 @@ struct LocalMapperOptions {
     visit("bundle_adjustment", o.bundle_adjustment);
     visit("max_queued_keyframes", o.max_queued_keyframes);
     visit("stop_ba_for_new_keyframe", o.stop_ba_for_new_keyframe);
+    visit("min_frames_between_local_ba", o.min_frames_between_local_ba);
   }
 };
 
@@ -92,7 +104,9 @@ struct MappingResult {
   int fused_points = 0;
   int local_keyframes = 0, fixed_keyframes = 0, local_points = 0;
   BundleAdjustmentStats ba;  // observations, solver iterations and stop of the local BA
-  bool ba_skipped = false;   // threaded: a new keyframe was waiting, so no local BA was run
+  // No local BA was run: a new keyframe was waiting (threaded), or one ran fewer than
+  // min_frames_between_local_ba frames before.
+  bool ba_skipped = false;
   int removed_observations = 0;
   int culled_keyframes = 0;
   int freed_points = 0;  // culled points whose memory was released
@@ -137,6 +151,7 @@ class LocalMapper {
   Map* map_;
   LocalMapperOptions options_;
   std::vector<MapPoint*> recent_points_;
+  std::optional<size_t> last_adjusted_frame_;  // frame index of the last keyframe adjusted
 };
 
 }  // namespace sdoslam

@@ -75,11 +75,22 @@ TEST(LocalMapper, TriangulatesFeaturesWithoutDepthOntoTheTrueSurface) {
   EXPECT_GT(on_surface, 0.9 * checked);
 }
 
+// Options under which every keyframe gets its local BA: the tests below judge the last one's,
+// and the eight keyframes come on consecutive frames (mapping.min_frames_between_local_ba would
+// leave the last unadjusted).
+LocalMapperOptions EveryKeyFrameAdjusted() {
+  LocalMapperOptions options;
+  options.min_frames_between_local_ba = 0;
+  return options;
+}
+
 // Eight keyframes 4 cm apart in the rendered room, each tracked against the one before and
 // mapped with `options`; returns the last keyframe's mapping result. `waiting`: handed to
-// Process as the flag of a keyframe waiting to be mapped.
+// Process as the flag of a keyframe waiting to be mapped. `all` (optional): every keyframe's
+// result, in order.
 MappingResult MapEightViewsOfTheRoom(const LocalMapperOptions& options,
-                                     const std::atomic<bool>* waiting = nullptr) {
+                                     const std::atomic<bool>* waiting = nullptr,
+                                     std::vector<MappingResult>* all = nullptr) {
   const Camera camera(synth::SyntheticCamera());
   const OrbExtractor extractor(OrbOptions{});
   auto geometry = std::make_shared<FrameGeometry>(camera, extractor, 40.0, 3.0);
@@ -107,16 +118,17 @@ MappingResult MapEightViewsOfTheRoom(const LocalMapperOptions& options,
       p->UpdateFromObservations();
     }
     result = mapper.Process(kf, nullptr, waiting);
+    if (all != nullptr) all->push_back(result);
     previous = kf;
   }
   return result;
 }
 
 TEST(LocalMapper, TheLocalAdjustmentStaysWithinItsObservationBudget) {
-  const MappingResult unbounded = MapEightViewsOfTheRoom(LocalMapperOptions{});
+  const MappingResult unbounded = MapEightViewsOfTheRoom(EveryKeyFrameAdjusted());
   ASSERT_EQ(unbounded.local_keyframes, 8);  // the whole small map is the window
   ASSERT_GT(unbounded.ba.observations, 2000);
-  LocalMapperOptions budgeted;
+  LocalMapperOptions budgeted = EveryKeyFrameAdjusted();
   budgeted.max_ba_observations = unbounded.ba.observations / 2;
   const MappingResult bounded = MapEightViewsOfTheRoom(budgeted);
   EXPECT_LE(bounded.ba.observations, budgeted.max_ba_observations);
@@ -131,20 +143,44 @@ TEST(LocalMapper, TheLocalAdjustmentStaysWithinItsObservationBudget) {
 // told not to; a lowered flag runs it as usual.
 TEST(LocalMapper, AKeyframeWaitingSkipsTheLocalAdjustmentUnlessTurnedOff) {
   const std::atomic<bool> raised{true}, lowered{false};
-  const MappingResult skipped = MapEightViewsOfTheRoom(LocalMapperOptions{}, &raised);
+  const MappingResult skipped = MapEightViewsOfTheRoom(EveryKeyFrameAdjusted(), &raised);
   EXPECT_TRUE(skipped.ba_skipped);
   EXPECT_EQ(skipped.ba.iterations, 0);
   EXPECT_EQ(skipped.ba.observations, 0);
-  const MappingResult adjusted = MapEightViewsOfTheRoom(LocalMapperOptions{}, &lowered);
+  const MappingResult adjusted = MapEightViewsOfTheRoom(EveryKeyFrameAdjusted(), &lowered);
   EXPECT_FALSE(adjusted.ba_skipped);
   EXPECT_FALSE(adjusted.ba.stopped);
   EXPECT_GT(adjusted.ba.iterations, 2);
-  LocalMapperOptions never_stop;
+  LocalMapperOptions never_stop = EveryKeyFrameAdjusted();
   never_stop.stop_ba_for_new_keyframe = false;
   const MappingResult kept = MapEightViewsOfTheRoom(never_stop, &raised);
   EXPECT_FALSE(kept.ba_skipped);
   EXPECT_FALSE(kept.ba.stopped);
   EXPECT_EQ(kept.ba.iterations, adjusted.ba.iterations);
+}
+
+// Keyframes that come close together share one local BA: with min_frames_between_local_ba = 3,
+// keyframes of consecutive frames are adjusted on every third one once adjustment starts (the
+// map's third keyframe); the others are mapped (triangulated, fused) but not adjusted.
+TEST(LocalMapper, KeyframesSoonAfterAnAdjustedOneAreNotAdjusted) {
+  std::vector<MappingResult> every, spaced;
+  MapEightViewsOfTheRoom(EveryKeyFrameAdjusted(), nullptr, &every);
+  LocalMapperOptions options;
+  options.min_frames_between_local_ba = 3;
+  MapEightViewsOfTheRoom(options, nullptr, &spaced);
+  ASSERT_EQ(every.size(), 8u);
+  ASSERT_EQ(spaced.size(), 8u);
+  for (size_t i = 0; i < 8; ++i) {
+    const bool adjusts = i >= 2;  // a BA needs more than two good keyframes
+    EXPECT_EQ(every[i].ba.iterations > 0, adjusts) << "keyframe " << i;
+    const bool spaced_adjusts = adjusts && (i - 2) % 3 == 0;  // frames 2, 5
+    EXPECT_EQ(spaced[i].ba.iterations > 0, spaced_adjusts) << "keyframe " << i;
+    EXPECT_EQ(spaced[i].ba_skipped, adjusts && !spaced_adjusts) << "keyframe " << i;
+  }
+  // Mapping itself goes on for the keyframes left unadjusted.
+  EXPECT_GT(spaced[3].fused_points + spaced[3].triangulated_points + spaced[4].fused_points +
+                spaced[4].triangulated_points,
+            0);
 }
 
 // Keyframes that see the place from the same spot, none of them redundant by its points: each

@@ -151,6 +151,9 @@ TEST(SlamThreaded, ANewKeyFrameStopsOrSkipsLocalBundleAdjustmentUnlessTurnedOff)
     options.tracking.min_close_points = 100000;  // a keyframe asked for at every frame
     options.tracking.close_points_to_create = 0;
     options.mapping.stop_ba_for_new_keyframe = stop_for_new_keyframe;
+    // Every keyframe is due a BA, so that each one skipped or stopped gave way to a new keyframe
+    // (with keyframes on consecutive frames, the spacing would skip two in three).
+    options.mapping.min_frames_between_local_ba = 0;
     System slam(synth::SyntheticCamera(), options);
     for (size_t i = 0; i < frames.size(); ++i)
       slam.TrackRgbd(i, frames[i].timestamp, frames[i].bgr, frames[i].depth);
@@ -943,6 +946,8 @@ TEST(SlamOptionsTest, CheckMessagesNameTheConfigPath) {
             "c.yaml: loop_closing.pose_graph.max_iterations must be >= 1");
   EXPECT_EQ(ErrorOf("mapping:\n  max_queued_keyframes: 0\n"),
             "c.yaml: mapping.max_queued_keyframes must be >= 1");
+  EXPECT_EQ(ErrorOf("mapping:\n  min_frames_between_local_ba: -1\n"),
+            "c.yaml: mapping.min_frames_between_local_ba must be >= 0");
   for (const char* spacing : {"-1", "31"})
     EXPECT_EQ(ErrorOf(std::string("tracking:\n  min_frames_between_keyframes: ") + spacing + "\n"),
               "c.yaml: tracking.min_frames_between_keyframes must lie in [0, "
