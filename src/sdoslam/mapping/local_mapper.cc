@@ -88,7 +88,9 @@ MappingResult LocalMapper::Process(KeyFrame* kf, std::mutex* map_mutex,
       last_adjusted_frame_.has_value() &&
       kf->frame.index <
           *last_adjusted_frame_ + static_cast<size_t>(options_.min_frames_between_local_ba);
-  if (adjust && ((stop != nullptr && stop->load()) || too_soon)) {
+  if (adjust && too_soon) {
+    result.ba_spaced = true;
+  } else if (adjust && stop != nullptr && stop->load()) {
     result.ba_skipped = true;
   } else if (adjust) {
     LocalBundleAdjustment(kf, &result, map_mutex, stop);

@@ -104,9 +104,12 @@ struct MappingResult {
   int fused_points = 0;
   int local_keyframes = 0, fixed_keyframes = 0, local_points = 0;
   BundleAdjustmentStats ba;  // observations, solver iterations and stop of the local BA
-  // No local BA was run: a new keyframe was waiting (threaded), or one ran fewer than
-  // min_frames_between_local_ba frames before.
+  // No local BA was run because a new keyframe was waiting (threaded: it gave way).
   bool ba_skipped = false;
+  // No local BA was run because one ran fewer than min_frames_between_local_ba frames before
+  // (the next adjusted keyframe's window covers this one). Kept apart from ba_skipped, so that
+  // mapping.csv tells a threaded run's give-way from the spacing every run has.
+  bool ba_spaced = false;
   int removed_observations = 0;
   int culled_keyframes = 0;
   int freed_points = 0;  // culled points whose memory was released

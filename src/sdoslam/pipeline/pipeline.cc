@@ -563,7 +563,8 @@ RunSummary RunOnDataset(const RunOptions& options) {
         m.frame_index, m.ms, r.insert_ms, r.triangulate_ms, r.fuse_ms, r.ba_ms, r.ba_solve_ms,
         r.cull_ms, r.lock_wait_ms, r.culled_points, r.triangulated_points, r.fused_points,
         r.local_keyframes, r.fixed_keyframes, r.local_points, r.ba.observations, r.ba.iterations,
-        r.ba_skipped   ? "skipped"
+        r.ba_spaced    ? "spaced"
+        : r.ba_skipped ? "skipped"
         : r.ba.stopped ? "stopped"
                        : "",
         r.culled_keyframes, r.freed_points, m.cpu_ms);

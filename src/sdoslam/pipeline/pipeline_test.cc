@@ -13,6 +13,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <optional>
+#include <sstream>
 #include <thread>
 
 #include "sdoslam/core/error.h"
@@ -1017,6 +1018,47 @@ TEST(PipelineStages, MaskScoringCanBeLeftOutWithoutChangingTheRun) {
                 scored.trajectory[i].T_world_camera.matrix())
         << "frame " << i;
   }
+}
+
+// mapping.csv names why a keyframe got no local BA: `spaced` when one ran fewer than
+// min_frames_between_local_ba frames before, `skipped` only when it gave way to a waiting
+// keyframe, which a sequential run never does. With a spacing longer than the walk, every
+// keyframe after the first adjusted one is spaced.
+TEST(PipelineOutputs, MappingLogTellsSpacedBundleAdjustmentsFromSkippedOnes) {
+  testing::TempDir dir;
+  const auto sequence = WriteShortWalk(dir, 60);
+  RunOptions run = SyntheticRun(sequence, dir / "out", RunMode::kConventional);
+  run.slam.sequential = true;
+  run.slam.mapping.min_frames_between_local_ba = 1000;
+  const RunSummary s = RunOnDataset(run);
+  size_t adjusted = 0, spaced = 0;
+  for (const MappingRecord& m : s.mapping) {
+    adjusted += m.result.ba.iterations > 0;
+    spaced += m.result.ba_spaced;
+    EXPECT_FALSE(m.result.ba_skipped) << "keyframe of frame " << m.frame_index;
+  }
+  EXPECT_EQ(adjusted, 1u);
+  ASSERT_GE(spaced, 1u) << s.mapping.size() << " keyframes";
+  std::istringstream log(testing::ReadText(dir / "out" / "mapping.csv"));
+  std::string line;
+  std::getline(log, line);
+  size_t column = 0;
+  for (size_t start = 0; line.substr(start, line.find(',', start) - start) != "ba_stopped";
+       start = line.find(',', start) + 1) {
+    ASSERT_NE(line.find(',', start), std::string::npos) << "no ba_stopped column: " << line;
+    ++column;
+  }
+  size_t spaced_rows = 0, rows = 0;
+  while (std::getline(log, line)) {
+    std::istringstream fields(line);
+    std::string field;
+    for (size_t c = 0; c <= column; ++c) std::getline(fields, field, ',');
+    ++rows;
+    spaced_rows += field == "spaced";
+    EXPECT_NE(field, "skipped") << line;
+  }
+  EXPECT_EQ(rows, s.mapping.size());
+  EXPECT_EQ(spaced_rows, spaced);
 }
 
 // A frame that waits between Prepare and Finish (as a frame read ahead waits in the queue for
