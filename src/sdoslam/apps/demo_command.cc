@@ -179,6 +179,17 @@ void WriteDemoReport(const DemoArgs& args, const std::filesystem::path& out,
   WriteHtmlReport(report, out / "report.html");
 }
 
+// Thumbnails of an earlier demo would linger next to the new ones. Only its .jpg files go:
+// nothing else in the folder, nothing behind a symbolic link (the user's files stay).
+void RemoveEarlierThumbnails(const std::filesystem::path& folder) {
+  std::error_code ec;
+  if (!std::filesystem::is_directory(std::filesystem::symlink_status(folder, ec))) return;
+  for (const auto& entry : std::filesystem::directory_iterator(folder, ec)) {
+    if (entry.path().extension() == ".jpg" && entry.is_regular_file(ec) && !entry.is_symlink(ec))
+      std::filesystem::remove(entry.path(), ec);
+  }
+}
+
 // The main job on built-in data: render a static room and the same room with people walking
 // through it (same camera motion), run SLAM and evaluate against the ground truth: conventional
 // on both, then the dynamic front end (sdo) and the ground-truth-mask oracle on the walking one.
@@ -190,9 +201,7 @@ void RunDemo(const DemoArgs& args) {
   std::cout << "sdoslam demo: synthetic sequence -> SLAM -> evaluation (nothing downloaded)\n\n";
   std::vector<EstimateEvaluation> evaluations;
   std::vector<DemoRun> runs;
-  // Thumbnails of an earlier demo would linger next to the new ones.
-  std::error_code ignored;
-  std::filesystem::remove_all(out / "report_files", ignored);
+  RemoveEarlierThumbnails(out / "report_files");
   for (const char* scenario : {"static_room", "walking_xyz"}) {
     synth::SynthOptions synth_options;
     synth_options.scenario = scenario;

@@ -2,16 +2,22 @@
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
+#include <unistd.h>
 
+#include <csignal>
 #include <iostream>
 #include <memory>
 #include <opencv2/imgcodecs.hpp>
 
+#include "sdoslam/apps/exit_codes.h"
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
+#include "sdoslam/core/interrupt.h"
 #include "sdoslam/io/omd.h"
+#include "sdoslam/io/output_folder.h"
 #include "sdoslam/synth/real_background.h"
 #include "sdoslam/synth/sequence.h"
+#include "sdoslam/synth/sequence_writer.h"
 
 namespace sdoslam {
 namespace {
@@ -114,21 +120,24 @@ void RunSynth(const SynthArgs& args) {
   options.depth_factor = args.depth_factor;
   synth::SequenceSummary s;
   if (args.layout == "omd") {
-    // Rendered in the TUM layout beside `out`, then rewritten as an OMD segment; an earlier
-    // `out` is replaced only once the segment is complete.
-    if (!args.overwrite && std::filesystem::exists(args.out) &&
-        !std::filesystem::is_empty(args.out)) {
-      throw Error(args.out + " exists; pass --overwrite to replace it");
-    }
-    const std::filesystem::path tum = args.out + ".tum-staging";
-    s = synth::WriteSequence(options, tum, /*overwrite=*/true);
+    // Rendered in the TUM layout into a hidden folder of its own beside `out`, then rewritten
+    // as an OMD segment; an earlier `out` is replaced only once the segment is complete.
+    OutputFolderOptions omd_folder;
+    omd_folder.kind = kOmdSegmentKind;
+    omd_folder.overwrite = args.overwrite;
+    CheckOutputFolder(args.out, omd_folder);  // before the rendering, not after it
+    const std::filesystem::path out = std::filesystem::path(args.out).lexically_normal();
+    const std::filesystem::path tum =
+        (out.has_parent_path() ? out.parent_path() : std::filesystem::path(".")) /
+        fmt::format(".{}.sdoslam-tum-{}", out.filename().string(), ::getpid());
+    s = synth::WriteSequence(options, tum);
     try {
       WriteOmdFromTum(tum, args.out, OmdWriteOptions::ExampleApparatus(), args.overwrite);
     } catch (...) {
-      std::filesystem::remove_all(tum);
+      RemoveOutputFolder(tum, synth::kSyntheticSequenceKind);
       throw;
     }
-    std::filesystem::remove_all(tum);
+    RemoveOutputFolder(tum, synth::kSyntheticSequenceKind);
   } else {
     s = synth::WriteSequence(options, args.out, args.overwrite);
   }
@@ -191,7 +200,26 @@ void AddSynthCommand(CLI::App& app) {
   cmd->add_flag("--list", args->list, "list the scenarios and camera motions");
   cmd->add_option("--contact-sheet", args->contact_sheet,
                   "write a PNG with frames of every scenario");
-  cmd->callback([args] { RunSynth(*args); });
+  cmd->callback([args] {
+    InterruptHandler interrupts(
+        "\nsdoslam: interrupted; removing the frames written so far, the output folder stays as "
+        "it was (interrupt again to stop at once)\n");
+    const auto exit_code = [] {
+      return ExitRequest{InterruptHandler::ReceivedSignal() == SIGTERM ? kExitTerminated
+                                                                        : kExitInterrupted};
+    };
+    try {
+      RunSynth(*args);
+    } catch (const Interrupted&) {
+      std::cout << "interrupted: nothing written, " << args->out << " is as it was\n";
+      throw exit_code();
+    }
+    if (InterruptHandler::Requested()) {
+      // The signal came after the last frame: the sequence was finished and is in place whole.
+      std::cout << "interrupted after the last frame: " << args->out << " is complete\n";
+      throw exit_code();
+    }
+  });
 }
 
 }  // namespace sdoslam

@@ -1,7 +1,10 @@
 #include "sdoslam/core/atomic_file.h"
 
+#include <fcntl.h>
 #include <unistd.h>
 
+#include <cerrno>
+#include <cstring>
 #include <fstream>
 #include <string>
 #include <system_error>
@@ -89,6 +92,26 @@ void WriteFileAtomically(const std::filesystem::path& path,
     throw IoError("cannot write " + path.string());
   }
   Commit(tmp, path);
+}
+
+void SyncToDisk(const std::filesystem::path& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0)
+    throw IoError("cannot open " + path.string() + " to sync it: " + std::strerror(errno));
+  const int rc = ::fsync(fd);
+  const int saved = errno;
+  ::close(fd);
+  if (rc != 0) throw IoError("cannot sync " + path.string() + ": " + std::strerror(saved));
+}
+
+void SyncFileSystemOf(const std::filesystem::path& folder) {
+  const int fd = ::open(folder.c_str(), O_DIRECTORY | O_RDONLY | O_CLOEXEC);
+  if (fd < 0)
+    throw IoError("cannot open " + folder.string() + " to sync it: " + std::strerror(errno));
+  const int rc = ::syncfs(fd);
+  const int saved = errno;
+  ::close(fd);
+  if (rc != 0) throw IoError("cannot sync " + folder.string() + ": " + std::strerror(saved));
 }
 
 }  // namespace sdoslam

@@ -18,4 +18,11 @@ void WriteFileAtomically(const std::filesystem::path& path,
 void WriteFileAtomically(const std::filesystem::path& path,
                          const std::function<bool(const std::filesystem::path&)>& write);
 
+// Flushes one file or folder to disk (fsync). Throws IoError naming it.
+void SyncToDisk(const std::filesystem::path& path);
+
+// Flushes every file of `folder`'s file system in one call (syncfs): for a folder of 1,000s of
+// files, where one fsync each would cost seconds. Throws IoError naming it.
+void SyncFileSystemOf(const std::filesystem::path& folder);
+
 }  // namespace sdoslam

@@ -18,6 +18,10 @@ std::atomic<bool> g_deferring{false};  // an AbortDeferral is alive
 static_assert(std::atomic<int>::is_always_lock_free && std::atomic<bool>::is_always_lock_free);
 struct sigaction g_old_int, g_old_term;
 std::atomic<bool> g_installed{false};
+std::atomic<const char*> g_first_message{nullptr};
+constexpr char kDefaultFirstMessage[] =
+    "\nsdoslam: interrupted; finishing the frame in hand and writing the results so far "
+    "(interrupt again to abort without writing)\n";
 
 void WriteStderr(const char* text) {
   // write(2) is async-signal-safe; iostreams and spdlog are not.
@@ -33,9 +37,7 @@ void WriteStderr(const char* text) {
 void OnSignal(int signal) {
   int expected = 0;
   if (g_received.compare_exchange_strong(expected, signal)) {
-    WriteStderr(
-        "\nsdoslam: interrupted; finishing the frame in hand and writing the results so far "
-        "(interrupt again to abort without writing)\n");
+    WriteStderr(g_first_message.load());
     return;
   }
   // Pending first, then the check: whichever of this and ~AbortDeferral looks second aborts.
@@ -45,8 +47,9 @@ void OnSignal(int signal) {
 
 }  // namespace
 
-InterruptHandler::InterruptHandler() {
+InterruptHandler::InterruptHandler(const char* first_signal_message) {
   if (g_installed.exchange(true)) throw Error("InterruptHandler: one at a time per process");
+  g_first_message = first_signal_message ? first_signal_message : kDefaultFirstMessage;
   g_received = 0;
   g_abort_pending = 0;
   struct sigaction action {};

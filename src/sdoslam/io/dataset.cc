@@ -3,11 +3,13 @@
 #include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <opencv2/imgcodecs.hpp>
 
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
 #include "sdoslam/io/image_header.h"
+#include "sdoslam/io/output_folder.h"
 #include "sdoslam/io/png_reader.h"
 
 namespace sdoslam {
@@ -180,10 +182,20 @@ RgbdFrame LoadRgbdFrame(const RgbdFrameEntry& entry, size_t index, const CameraO
 }
 
 void WriteTumCopy(const RgbdDataset& dataset, const std::filesystem::path& out, bool overwrite) {
-  if (!overwrite && std::filesystem::exists(out) && !std::filesystem::is_empty(out))
-    throw Error(out.string() + " exists; pass --overwrite to replace it");
-  const std::filesystem::path staging = out.string() + ".staging";
-  std::filesystem::remove_all(staging);
+  OutputFolderOptions folder_options;
+  folder_options.kind = "TUM copy";
+  folder_options.overwrite = overwrite;
+  folder_options.inputs = {dataset.folder()};
+  // Frames may be listed from outside the folder: writing over any of them is refused too.
+  for (const RgbdFrameEntry& e : dataset.entries()) {
+    for (const auto& image : {e.rgb_path.parent_path(), e.depth_path.parent_path()}) {
+      if (std::find(folder_options.inputs.begin(), folder_options.inputs.end(), image) ==
+          folder_options.inputs.end())
+        folder_options.inputs.push_back(image);
+    }
+  }
+  OutputFolder folder(out, folder_options);
+  const std::filesystem::path& staging = folder.staging();
   std::filesystem::create_directories(staging / "rgb");
   std::filesystem::create_directories(staging / "depth");
   std::string rgb = "# color images\n# timestamp filename\n";
@@ -211,8 +223,7 @@ void WriteTumCopy(const RgbdDataset& dataset, const std::filesystem::path& out, 
     for (const auto& [name, trajectory] : dataset.bodies())
       WriteTumTrajectory(staging / "bodies" / (name + ".txt"), trajectory);
   }
-  std::filesystem::remove_all(out);
-  std::filesystem::rename(staging, out);
+  folder.Commit();
 }
 
 }  // namespace sdoslam

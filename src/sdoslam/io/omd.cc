@@ -13,6 +13,7 @@
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/text_file.h"
+#include "sdoslam/io/output_folder.h"
 #include "sdoslam/io/png_reader.h"
 
 namespace sdoslam {
@@ -370,10 +371,12 @@ void WriteOmdFromTum(const std::filesystem::path& tum, const std::filesystem::pa
   const CameraOptions camera = LoadCameraConfig(tum / "camera.yaml");
   const TumDataset dataset(tum, camera);
   const Trajectory ground_truth = ReadTumTrajectory(tum / "groundtruth.txt");
-  if (!overwrite && std::filesystem::exists(out) && !std::filesystem::is_empty(out))
-    throw Error(out.string() + " exists; pass --overwrite to replace it");
-  const std::filesystem::path staging = out.string() + ".staging";
-  std::filesystem::remove_all(staging);
+  OutputFolderOptions folder_options;
+  folder_options.kind = kOmdSegmentKind;
+  folder_options.overwrite = overwrite;
+  folder_options.inputs = {tum};
+  OutputFolder folder(out, folder_options);
+  const std::filesystem::path& staging = folder.staging();
   std::filesystem::create_directories(staging / "rgbd");
 
   std::string list = "frame_num,time_sec,time_nsec\n";
@@ -470,8 +473,7 @@ void WriteOmdFromTum(const std::filesystem::path& tum, const std::filesystem::pa
          "m11,m12,m13,m14,m21,m22,m23,m24,m31,m32,m33,m34,m41,m42,m43,m44\n";
     for (const auto& [t, row] : rows) o << row;
   });
-  std::filesystem::remove_all(out);
-  std::filesystem::rename(staging, out);
+  folder.Commit();
 }
 
 }  // namespace sdoslam

@@ -90,6 +90,8 @@ struct OmdWriteOptions {
   Eigen::Isometry3d T_cam1_cam0 = Eigen::Isometry3d::Identity();  // right stereo from left
   Eigen::Isometry3d T_cam2_cam1 = Eigen::Isometry3d::Identity();  // colour from right
 };
+// The kind in the marker of an OMD segment's folder that WriteOmdFromTum wrote.
+inline constexpr char kOmdSegmentKind[] = "OMD segment";
 void WriteOmdFromTum(const std::filesystem::path& tum, const std::filesystem::path& out,
                      const OmdWriteOptions& options, bool overwrite = false);
 

@@ -10,12 +10,16 @@
 #include <cerrno>
 #include <cstring>
 #include <fstream>
+#include <functional>
+#include <iterator>
 #include <memory>
 #include <set>
 #include <system_error>
 
+#include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/interrupt.h"
+#include "sdoslam/io/output_folder.h"
 
 namespace sdoslam {
 namespace fs = std::filesystem;
@@ -25,13 +29,8 @@ constexpr char kStagingPrefix[] = ".sdoslam-staging-";
 constexpr char kFormat[] = "sdoslam result set";
 constexpr int kFormatVersion = 1;
 
-// Result names that sets written before manifests existed may hold: a rerun removes them too.
-const std::set<std::string>& LegacyTopLevelNames() {
-  static const std::set<std::string> names = {"CameraTrajectory.txt", "KeyFrameTrajectory.txt",
-                                              "frames.csv", "config.yaml", "features.csv"};
-  return names;
-}
-constexpr std::array<const char*, 2> kResultFolders = {"masks", "overlays"};
+constexpr char kJournalName[] = ".sdoslam-commit.json";
+constexpr char kJournalFormat[] = "sdoslam result commit";
 
 std::string ErrnoText() { return std::strerror(errno); }
 
@@ -47,33 +46,109 @@ std::vector<fs::path> StagingFolders(const fs::path& out) {
   return found;
 }
 
-// Flushes a file or folder to disk; throws IoError.
-void Fsync(const fs::path& path, bool directory) {
-  const int fd = ::open(path.c_str(), (directory ? O_DIRECTORY : 0) | O_RDONLY | O_CLOEXEC);
-  if (fd < 0) throw IoError("cannot open " + path.string() + " to sync it: " + ErrnoText());
-  const int rc = ::fsync(fd);
-  const int saved = errno;
-  ::close(fd);
-  if (rc != 0) throw IoError("cannot sync " + path.string() + ": " + std::strerror(saved));
-}
-
-// syncfs(2) flushes every file of the staging folder's file system in one call; fsync of
-// thousands of masks one by one would cost seconds.
-void SyncFileSystemOf(const fs::path& path) {
-  const int fd = ::open(path.c_str(), O_DIRECTORY | O_RDONLY | O_CLOEXEC);
-  if (fd < 0) throw IoError("cannot open " + path.string() + " to sync it: " + ErrnoText());
-  const int rc = ::syncfs(fd);
-  const int saved = errno;
-  ::close(fd);
-  if (rc != 0) throw IoError("cannot sync " + path.string() + ": " + std::strerror(saved));
-}
-
 void Rename(const fs::path& from, const fs::path& to) {
   std::error_code ec;
   fs::rename(from, to, ec);
   // The message comes from this rename's own error code, not from errno of a later call.
   if (ec)
     throw IoError("cannot move " + from.string() + " to " + to.string() + ": " + ec.message());
+}
+
+// Throws IoError unless every folder between `out` and `relative`'s file is absent or a real
+// folder: a result is never written or removed through a symbolic link.
+void CheckRealFolders(const fs::path& out, const std::string& relative) {
+  std::error_code ec;
+  fs::path at = out;
+  const fs::path rel(relative);
+  for (auto it = rel.begin(); std::next(it) != rel.end(); ++it) {
+    at /= *it;
+    const fs::file_status status = fs::symlink_status(at, ec);
+    if (!fs::exists(status)) return;
+    if (!fs::is_directory(status)) {
+      throw IoError(at.string() + " is in the way: " +
+                    (fs::is_symlink(status) ? "a symbolic link" : "not a folder") +
+                    " where sdoslam writes its " + it->string() +
+                    "/; move it away, or choose another --out. The earlier results are unchanged");
+    }
+  }
+}
+
+// Writes `text` to `path` through a synced temporary file and a rename, then syncs the folder:
+// after it returns, the file is on disk whole, whatever happens next.
+void WriteFileAtomicallySynced(const fs::path& path, const std::string& text) {
+  const fs::path tmp = path.string() + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    out << text;
+    out.flush();
+    if (!out) throw IoError("cannot write " + tmp.string() + " (disk full?)");
+  }
+  SyncToDisk(tmp);
+  Rename(tmp, path);
+  SyncToDisk(path.parent_path());
+}
+
+// Carries out (or finishes) the commit that `out`'s journal describes. Every step can be
+// repeated: a file already moved is not in the staging folder any more, a stale file already
+// removed is gone, and once the new manifest is in place only the clean-up is left.
+void ApplyJournal(const fs::path& out, const std::function<void()>& step) {
+  const fs::path journal_path = out / kJournalName;
+  nlohmann::json journal;
+  try {
+    std::ifstream in(journal_path);
+    journal = nlohmann::json::parse(in);
+    if (journal.at("format").get<std::string>() != kJournalFormat) throw Error("format");
+  } catch (const std::exception&) {
+    throw IoError(journal_path.string() +
+                  " is damaged: the commit it describes cannot be finished; remove the folder's "
+                  "results by hand and rerun");
+  }
+  const std::string staging_name = journal.at("staging").get<std::string>();
+  if (!IsStagingName(staging_name) || staging_name.find('/') != std::string::npos)
+    throw IoError(journal_path.string() + ": names no staging folder of sdoslam's");
+  const fs::path staging = out / staging_name;
+  std::error_code ec;
+  if (fs::is_regular_file(fs::symlink_status(staging / kManifestName, ec))) {
+    const ResultManifest fresh = ReadResultManifest(staging);
+    fs::remove(out / kManifestName, ec);  // the old set is no longer vouched for
+    step();
+    for (const ResultFileEntry& f : fresh.files) {
+      const fs::path from = staging / f.path;
+      if (!fs::exists(fs::symlink_status(from, ec))) continue;  // moved before the crash
+      CheckRealFolders(out, f.path);
+      const fs::path target = out / f.path;
+      fs::create_directories(target.parent_path(), ec);
+      Rename(from, target);
+      step();
+    }
+    std::set<fs::path> emptied;
+    for (const auto& item : journal.at("stale")) {
+      const std::string path = item.get<std::string>();
+      if (fresh.Find(path) || path.find("..") != std::string::npos || path.empty() ||
+          path[0] == '/')
+        continue;
+      try {
+        CheckRealFolders(out, path);
+      } catch (const IoError&) {
+        continue;  // behind a symbolic link now: not ours to touch
+      }
+      if (fs::is_regular_file(fs::symlink_status(out / path, ec))) {
+        fs::remove(out / path, ec);
+        step();
+      }
+      for (fs::path p = fs::path(path).parent_path(); !p.empty(); p = p.parent_path())
+        emptied.insert(p);
+    }
+    for (auto it = emptied.rbegin(); it != emptied.rend(); ++it) {
+      if (fs::is_directory(fs::symlink_status(out / *it, ec))) ::rmdir((out / *it).c_str());
+    }
+    Rename(staging / kManifestName, out / kManifestName);
+    SyncToDisk(out);
+    step();
+  }
+  fs::remove(journal_path, ec);
+  SyncToDisk(out);
+  fs::remove_all(staging, ec);
 }
 
 // Ordered so that a reader sees format, status and info before the long list of files.
@@ -90,13 +165,13 @@ nlohmann::ordered_json ToJson(const ResultManifest& manifest) {
   return json;
 }
 
-std::optional<ResultManifest> TryReadManifest(const fs::path& out) {
-  const fs::path path = out / kManifestName;
-  if (!fs::exists(path)) return std::nullopt;
-  return ReadResultManifest(out);
-}
-
 }  // namespace
+
+void FinishCutOffCommit(const fs::path& out) {
+  std::error_code ec;
+  if (!fs::exists(fs::symlink_status(out / kJournalName, ec))) return;
+  ApplyJournal(out, [] {});
+}
 
 const ResultFileEntry* ResultManifest::Find(const std::string& relative_path) const {
   for (const ResultFileEntry& f : files)
@@ -131,12 +206,23 @@ std::string Sha256OfFile(const fs::path& path) {
 
 ResultSetWriter::ResultSetWriter(fs::path out) : out_(std::move(out)) {
   std::error_code ec;
+  if (out_.empty()) throw Error("--out is empty: give a folder");
+  CheckOutputPlace(out_, {}, "--out");
   if (fs::exists(out_, ec) && !fs::is_directory(out_, ec))
     throw IoError(out_.string() + ": --out names a file, not a folder");
   if (!fs::exists(out_, ec)) {
-    fs::create_directories(out_, ec);
-    if (ec) throw IoError("cannot create the output folder " + out_.string() + ": " + ec.message());
-    created_out_ = true;
+    // Each missing level remembered, so that a failed run removes every folder it created.
+    std::vector<fs::path> missing;
+    for (fs::path p = out_; !p.empty() && !fs::exists(fs::symlink_status(p, ec));
+         p = p.parent_path()) {
+      missing.push_back(p);
+      if (p == p.parent_path()) break;
+    }
+    for (auto it = missing.rbegin(); it != missing.rend(); ++it) {
+      if (!fs::create_directory(*it, ec) && ec)
+        throw IoError("cannot create the output folder " + it->string() + ": " + ec.message());
+      created_folders_.paths.push_back(*it);
+    }
   }
   // A probe file finds a read-only folder or file system now, not after the last frame.
   const fs::path probe = out_ / (".sdoslam-probe-" + std::to_string(::getpid()));
@@ -157,7 +243,15 @@ ResultSetWriter::ResultSetWriter(fs::path out) : out_(std::move(out)) {
     lock_fd_ = -1;
     throw IoError(out_.string() + ": another sdoslam run is writing into this folder");
   }
-  // Holding the lock, every staging folder here is from a run that was cut off.
+  // Holding the lock: a commit that a crash cut off is finished first (its staging folder holds
+  // the complete new set), then every other staging folder is from a run that was cut off.
+  try {
+    FinishCutOffCommit(out_);
+  } catch (...) {
+    ::close(lock_fd_);
+    lock_fd_ = -1;
+    throw;
+  }
   for (const fs::path& stale : StagingFolders(out_)) fs::remove_all(stale, ec);
 
   staging_ = out_ / (std::string(kStagingPrefix) + std::to_string(::getpid()));
@@ -167,9 +261,15 @@ ResultSetWriter::ResultSetWriter(fs::path out) : out_(std::move(out)) {
 
 ResultSetWriter::~ResultSetWriter() {
   std::error_code ec;
-  if (!committed_ && !staging_.empty()) fs::remove_all(staging_, ec);
+  // Once the journal is written the staging folder is the new set: the next run finishes it.
+  if (!committed_ && !decided_ && !staging_.empty()) fs::remove_all(staging_, ec);
   if (lock_fd_ >= 0) ::close(lock_fd_);
-  if (created_out_ && fs::is_empty(out_, ec)) fs::remove(out_, ec);
+}
+
+ResultSetWriter::CreatedFolders::~CreatedFolders() {
+  // rmdir(2) removes a folder only while it is empty: a folder that got results stays. Runs
+  // also when the constructor throws, so a failed `--out a/b/c` leaves no `a/` behind.
+  for (auto it = paths.rbegin(); it != paths.rend(); ++it) ::rmdir(it->c_str());
 }
 
 fs::path ResultSetWriter::Stage(const std::string& relative_path) const {
@@ -187,6 +287,11 @@ void ResultSetWriter::WriteText(const std::string& relative_path,
   out << content;
   out.flush();
   if (!out) throw IoError("cannot write " + path.string() + " (disk full?)");
+}
+
+void ResultSetWriter::Step() {
+  ++step_;
+  if (step_hook_) step_hook_(step_);
 }
 
 ResultManifest ResultSetWriter::Commit(const std::string& status, const nlohmann::json& info) {
@@ -207,46 +312,47 @@ ResultManifest ResultSetWriter::Commit(const std::string& status, const nlohmann
             [](const auto& a, const auto& b) { return a.path < b.path; });
   WriteText(kManifestName, ToJson(manifest).dump(1) + "\n");
   SyncFileSystemOf(staging_);
+  Step();
 
+  // Before anything in `out` changes: every new file's place must be free or hold a file of the
+  // earlier set, reached through real folders. A user's file, a folder or a symbolic link
+  // there (a `masks` that links elsewhere) is refused, naming it, with the earlier set intact.
   std::optional<ResultManifest> old;
-  try {
-    old = TryReadManifest(out_);
-  } catch (const Error&) {
-    // A damaged old manifest names nothing reliable; the legacy names below still go.
-  }
-
-  // From here on only renames and removals: a second interrupt waits until they are done.
-  AbortDeferral defer_abort;
-  fs::remove(out_ / kManifestName, ec);  // the old set is no longer vouched for
-  std::set<std::string> fresh;
+  if (fs::exists(fs::symlink_status(out_ / kManifestName, ec))) old = ReadResultManifest(out_);
   for (const ResultFileEntry& f : manifest.files) {
-    fresh.insert(f.path);
     const fs::path target = out_ / f.path;
-    fs::create_directories(target.parent_path(), ec);
-    Rename(staging_ / f.path, target);
-  }
-  std::set<std::string> stale;
-  if (old) {
-    for (const ResultFileEntry& f : old->files) stale.insert(f.path);
-  }
-  for (const std::string& name : LegacyTopLevelNames()) stale.insert(name);
-  for (const char* folder : kResultFolders) {
-    for (const auto& entry : fs::directory_iterator(out_ / folder, ec)) {
-      if (entry.is_regular_file(ec))
-        stale.insert(fs::relative(entry.path(), out_).generic_string());
+    CheckRealFolders(out_, f.path);
+    const fs::file_status status = fs::symlink_status(target, ec);
+    if (!fs::exists(status)) continue;
+    if (!fs::is_regular_file(status) || !old || !old->Find(f.path)) {
+      throw IoError(target.string() + " is in the way: sdoslam did not write it (" +
+                    std::string(fs::is_directory(status)      ? "a folder"
+                                : fs::is_symlink(status)      ? "a symbolic link"
+                                : fs::is_regular_file(status) ? "not in manifest.json"
+                                                              : "not a regular file") +
+                    "); move it away, or choose another --out. The earlier results are unchanged");
     }
   }
-  for (const std::string& path : stale) {
-    if (!fresh.count(path)) fs::remove(out_ / path, ec);
+  // The earlier set's files that the new one lacks: removed, and nothing else.
+  nlohmann::json stale = nlohmann::json::array();
+  if (old) {
+    for (const ResultFileEntry& f : old->files)
+      if (!manifest.Find(f.path)) stale.push_back(f.path);
   }
-  for (const char* folder : kResultFolders) {
-    if (fs::is_directory(out_ / folder, ec) && fs::is_empty(out_ / folder, ec))
-      fs::remove(out_ / folder, ec);
-  }
-  Rename(staging_ / kManifestName, out_ / kManifestName);
-  Fsync(out_, /*directory=*/true);
+
+  // The journal names the complete staged set: from the moment it is in place, the commit is
+  // decided, and a crash anywhere after it is finished by the next writer or reader.
+  WriteFileAtomicallySynced(
+      out_ / kJournalName,
+      nlohmann::json{
+          {"format", kJournalFormat}, {"staging", staging_.filename().string()}, {"stale", stale}}
+          .dump(1));
+  decided_ = true;
+  Step();
+  // From here on only renames and removals: a second interrupt waits until they are done.
+  AbortDeferral defer_abort;
+  ApplyJournal(out_, [this] { Step(); });
   committed_ = true;
-  fs::remove_all(staging_, ec);
   return manifest;
 }
 
@@ -298,6 +404,28 @@ void VerifyEntry(const fs::path& out, const ResultFileEntry& f) {
                 advice);
 }
 
+// A reader that finds a commit cut off by a crash finishes it, under the writers' lock, so
+// that it reads the complete new set; while a live run holds the lock it refuses.
+void FinishCutOffCommitForReader(const fs::path& out) {
+  std::error_code ec;
+  if (!fs::exists(fs::symlink_status(out / kJournalName, ec))) return;
+  const int fd = ::open(out.c_str(), O_DIRECTORY | O_RDONLY | O_CLOEXEC);
+  if (fd < 0 || ::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    if (fd >= 0) ::close(fd);
+    throw Error(out.string() +
+                ": a run is committing its results into this folder; read them "
+                "when it has ended");
+  }
+  try {
+    FinishCutOffCommit(out);
+  } catch (const IoError& e) {
+    ::close(fd);
+    throw Error(std::string(e.what()) + " (a run's commit into " + out.string() +
+                " was cut off; rerun sdoslam into it, with write access, to finish it)");
+  }
+  ::close(fd);
+}
+
 [[noreturn]] void ThrowNoManifest(const fs::path& out) {
   if (!StagingFolders(out).empty()) {
     throw Error(out.string() +
@@ -312,6 +440,7 @@ void VerifyEntry(const fs::path& out, const ResultFileEntry& f) {
 
 ResultManifest VerifyResultSet(const fs::path& out) {
   if (!fs::is_directory(out)) throw Error(out.string() + ": no such folder");
+  FinishCutOffCommitForReader(out);
   if (!fs::exists(out / kManifestName)) ThrowNoManifest(out);
   ResultManifest manifest = ReadResultManifest(out);
   for (const ResultFileEntry& f : manifest.files) VerifyEntry(out, f);
@@ -320,6 +449,7 @@ ResultManifest VerifyResultSet(const fs::path& out) {
 
 std::optional<ResultManifest> VerifyResultFile(const fs::path& file) {
   const fs::path folder = file.has_parent_path() ? file.parent_path() : fs::path(".");
+  FinishCutOffCommitForReader(folder);
   if (!fs::exists(folder / kManifestName)) {
     if (!StagingFolders(folder).empty()) ThrowNoManifest(folder);
     return std::nullopt;  // a file from another tool

@@ -2,6 +2,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
@@ -10,16 +11,22 @@
 namespace sdoslam {
 
 // A run's results (trajectories, frames.csv, config.yaml, masks/, overlays/, ...) as one set
-// that is replaced all or nothing.
+// that is replaced all or nothing, even by a crash or a power cut.
 //
 // The writer fills a private staging folder inside the output folder and commits it at the end:
-// every staged file is renamed into place (a rename within one file system is atomic, so no
-// reader ever sees a half-written file), results of the earlier set that the new one lacks are
-// removed, and `manifest.json`, naming every file with its size and SHA-256, is renamed into
-// place last. Readers (`eval`, `eval-masks`) check the manifest and refuse a set whose files do
-// not match it. The commit is short (renames only) and blocks SIGINT/SIGTERM while it runs, so
-// an interrupt leaves either the old set or the new one; only a crash inside those milliseconds
-// leaves a set the readers refuse, with the complete new set still in the staging folder.
+//  1. the staged files are hashed into `manifest.json` (in the staging folder) and synced;
+//  2. every new file's place is checked: free, or a file that the earlier set's manifest lists,
+//     reached through real folders. A user's file, a folder or a symbolic link in the way (a
+//     `masks` that links elsewhere) is an error naming it, and nothing has changed yet;
+//  3. a journal, `.sdoslam-commit.json`, naming the staging folder and the earlier set's files
+//     that the new set lacks, is written and synced: the commit is now decided;
+//  4. the new files are renamed into place (a rename is atomic: no reader sees half a file),
+//     the earlier set's leftovers are removed (only files its manifest lists, never through a
+//     symbolic link), the new manifest is renamed into place, the journal removed.
+// A process killed during step 4 leaves the journal: the next writer, or reader, into that
+// folder finishes the commit from the staging folder before anything else, so what anyone reads
+// is the earlier set (killed before step 3) or the new one, never a mix. Steps 3-4 also hold
+// back a second Ctrl-C until they are done.
 //
 // Why not one rename of a folder: users find their results in --out itself, and a folder cannot
 // be swapped atomically with the folder that contains it.
@@ -65,13 +72,31 @@ class ResultSetWriter {
   // described above. `status` is "complete" or "interrupted". Returns the manifest written.
   ResultManifest Commit(const std::string& status, const nlohmann::json& info);
 
+  // For the crash tests: called with 1, 2, ... after each step of Commit() from the journal on
+  // (each rename and removal). A test kills the process there.
+  void SetStepHookForTesting(std::function<void(int)> hook) { step_hook_ = std::move(hook); }
+
  private:
+  // The folders the constructor created, outermost first; removed again while empty.
+  struct CreatedFolders {
+    std::vector<std::filesystem::path> paths;
+    ~CreatedFolders();
+  };
+  void Step();
+
   std::filesystem::path out_;
+  CreatedFolders created_folders_;
   std::filesystem::path staging_;
-  bool created_out_ = false;
   bool committed_ = false;
+  bool decided_ = false;  // the journal is written: the commit will be finished, here or later
   int lock_fd_ = -1;
+  int step_ = 0;
+  std::function<void(int)> step_hook_;
 };
+
+// Finishes a commit into `out` that a crash cut off (see above); nothing when there is none.
+// The caller holds the folder's lock (ResultSetWriter does). Throws IoError when it cannot.
+void FinishCutOffCommit(const std::filesystem::path& out);
 
 // Reads `out`/manifest.json. Throws Error when absent or malformed.
 ResultManifest ReadResultManifest(const std::filesystem::path& out);

@@ -2,6 +2,11 @@
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <map>
 
 #include "sdoslam/core/error.h"
 #include "sdoslam/testing/test_util.h"
@@ -78,18 +83,94 @@ TEST(ResultSet, ARerunReplacesTheOldSetAsAWholeStaleFilesIncluded) {
   EXPECT_EQ(VerifyResultSet(out).status, "interrupted");
 }
 
-TEST(ResultSet, ResultsOfAnOlderVersionWithoutManifestAreReplacedToo) {
+TEST(ResultSet, FilesItDidNotWriteAreNeverReplacedOrRemoved) {
   TempDir dir;
   const fs::path out = dir / "out";
-  WriteText(out / "features.csv", "stale");
-  WriteText(out / "masks/0009.png", "stale");
+  // No manifest: a folder of the user's (or of a version before manifests), not a result set.
+  WriteText(out / "features.csv", "the user's");
+  WriteText(out / "masks/0009.png", "the user's");
+  WriteText(out / "frames.csv", "the user's own frames.csv");
   {
     ResultSetWriter writer(out);
     writer.WriteText("frames.csv", "new");
+    EXPECT_THAT(MessageOf([&] { writer.Commit("complete", {}); }),
+                HasSubstr("frames.csv is in the way: sdoslam did not write it"));
+  }
+  EXPECT_EQ(ReadText(out / "frames.csv"), "the user's own frames.csv");
+  EXPECT_EQ(CountStaging(out), 0);
+  // Names the new set does not write are left alone, in `masks/` too.
+  fs::remove(out / "frames.csv");
+  {
+    ResultSetWriter writer(out);
+    writer.WriteText("frames.csv", "new");
+    writer.WriteText("masks/0001.png", "new");
     writer.Commit("complete", {});
   }
-  EXPECT_FALSE(fs::exists(out / "features.csv"));
-  EXPECT_FALSE(fs::exists(out / "masks"));
+  EXPECT_EQ(ReadText(out / "features.csv"), "the user's");
+  EXPECT_EQ(ReadText(out / "masks/0009.png"), "the user's");
+  // And a rerun that writes no masks removes its own, not the user's.
+  {
+    ResultSetWriter writer(out);
+    writer.WriteText("frames.csv", "newer");
+    writer.Commit("complete", {});
+  }
+  EXPECT_FALSE(fs::exists(out / "masks/0001.png"));
+  EXPECT_EQ(ReadText(out / "masks/0009.png"), "the user's");
+}
+
+TEST(ResultSet, AMasksFolderThatLinksElsewhereIsNeverWrittenThroughNorEmptied) {
+  TempDir dir;
+  const fs::path out = dir / "out";
+  WriteText(dir / "photos" / "0001.png", "a photo");
+  WriteText(dir / "photos" / "holiday.png", "another");
+  {
+    ResultSetWriter writer(out);
+    writer.WriteText("frames.csv", "old");
+    writer.WriteText("masks/0001.png", "old mask");
+    writer.Commit("complete", {});
+  }
+  fs::remove_all(out / "masks");
+  fs::create_directory_symlink(dir / "photos", out / "masks");
+  {
+    ResultSetWriter writer(out);
+    writer.WriteText("frames.csv", "new");
+    writer.WriteText("masks/0001.png", "new mask");
+    EXPECT_THAT(MessageOf([&] { writer.Commit("complete", {}); }), HasSubstr("symbolic link"));
+  }
+  {
+    ResultSetWriter writer(out);  // no masks this time: the old set's masks/0001.png is stale
+    writer.WriteText("frames.csv", "new");
+    writer.Commit("complete", {});
+  }
+  EXPECT_EQ(ReadText(dir / "photos" / "0001.png"), "a photo");
+  EXPECT_EQ(ReadText(dir / "photos" / "holiday.png"), "another");
+  EXPECT_TRUE(fs::is_symlink(out / "masks"));
+}
+
+TEST(ResultSet, AFolderInPlaceOfAResultFileIsRefusedBeforeTheOldSetIsTouched) {
+  TempDir dir;
+  const fs::path out = dir / "out";
+  {
+    ResultSetWriter writer(out);
+    writer.WriteText("CameraTrajectory.txt", "old trajectory");
+    writer.WriteText("mapping.csv", "old mapping");
+    writer.WriteText("loops.csv", "old loops");
+    writer.Commit("complete", {});
+  }
+  fs::remove(out / "loops.csv");
+  fs::create_directory(out / "loops.csv");
+  {
+    ResultSetWriter writer(out);
+    writer.WriteText("CameraTrajectory.txt", "new trajectory");
+    writer.WriteText("mapping.csv", "new mapping");
+    writer.WriteText("loops.csv", "new loops");
+    EXPECT_THAT(MessageOf([&] { writer.Commit("complete", {}); }),
+                HasSubstr("loops.csv is in the way"));
+  }
+  // The old manifest is still there and the old files with it: no mix of old and new.
+  EXPECT_EQ(ReadText(out / "CameraTrajectory.txt"), "old trajectory");
+  EXPECT_EQ(ReadText(out / "mapping.csv"), "old mapping");
+  EXPECT_THAT(MessageOf([&] { VerifyResultSet(out); }), HasSubstr("loops.csv"));
 }
 
 TEST(ResultSet, WithoutCommitTheOldSetStaysUntouchedAndNoStagingIsLeft) {
@@ -111,8 +192,88 @@ TEST(ResultSet, WithoutCommitTheOldSetStaysUntouchedAndNoStagingIsLeft) {
 
 TEST(ResultSet, AFailedRunLeavesNoFolderItCreated) {
   TempDir dir;
-  { ResultSetWriter writer(dir / "new" / "out"); }
-  EXPECT_FALSE(fs::exists(dir / "new" / "out"));
+  { ResultSetWriter writer(dir / "new" / "a" / "out"); }
+  EXPECT_FALSE(fs::exists(dir / "new"));
+  // Nor when the writer itself fails: `o` exists, `o/a/b` would be created, the lock is taken.
+  WriteText(dir / "o" / "keep.txt", "mine");
+  {
+    ResultSetWriter first(dir / "o" / "a" / "b");
+    EXPECT_THAT(MessageOf([&] { ResultSetWriter second(dir / "o" / "a" / "b"); }),
+                HasSubstr("another sdoslam run"));
+  }
+  EXPECT_FALSE(fs::exists(dir / "o" / "a"));
+  EXPECT_EQ(ReadText(dir / "o" / "keep.txt"), "mine");
+}
+
+// The old and the new set of the crash tests: some names in both, some in one only.
+const std::map<std::string, std::string> kOldSet = {{"CameraTrajectory.txt", "old trajectory"},
+                                                    {"frames.csv", "old frames"},
+                                                    {"masks/0001.png", "old mask 1"},
+                                                    {"masks/0002.png", "old mask 2"},
+                                                    {"overlays/0001.png", "old overlay"}};
+const std::map<std::string, std::string> kNewSet = {{"CameraTrajectory.txt", "new trajectory"},
+                                                    {"frames.csv", "new frames"},
+                                                    {"loops.csv", "new loops"},
+                                                    {"masks/0001.png", "new mask 1"}};
+
+void CommitSet(const fs::path& out, const std::map<std::string, std::string>& files,
+               int kill_at_step = 0) {
+  ResultSetWriter writer(out);
+  for (const auto& [path, content] : files) writer.WriteText(path, content);
+  writer.SetStepHookForTesting([kill_at_step](int step) {
+    if (step == kill_at_step) ::raise(SIGKILL);
+  });
+  writer.Commit("complete", {});
+}
+
+// What the manifest vouches for, read back: relative path -> content.
+std::map<std::string, std::string> VerifiedSet(const fs::path& out) {
+  std::map<std::string, std::string> found;
+  for (const ResultFileEntry& f : VerifyResultSet(out).files)
+    found[f.path] = ReadText(out / f.path);
+  return found;
+}
+
+TEST(ResultSet, AKillAtAnyStepOfTheCommitLeavesTheOldSetOrTheNewOneNeverAMix) {
+  int killed = 0;
+  for (int step = 1; step < 60; ++step) {
+    TempDir dir;
+    const fs::path out = dir / "out";
+    CommitSet(out, kOldSet);
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+      try {
+        CommitSet(out, kNewSet, step);
+      } catch (...) {
+        ::_exit(3);
+      }
+      ::_exit(0);
+    }
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    const bool was_killed = WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL;
+    if (!was_killed) {
+      ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+    }
+    // A reader (eval) finishes a commit that was decided, and then reads it whole.
+    const auto set = VerifiedSet(out);
+    // Step 1 comes before the journal: the commit was not decided, the old set stands.
+    EXPECT_EQ(set, step == 1 ? kOldSet : kNewSet) << "killed at step " << step;
+    if (step > 1) {
+      // Nothing is left over: no stale mask, no staging folder, no journal.
+      EXPECT_FALSE(fs::exists(out / "masks/0002.png")) << step;
+      EXPECT_FALSE(fs::exists(out / "overlays")) << step;
+      EXPECT_EQ(CountStaging(out), 0) << step;
+      EXPECT_FALSE(fs::exists(out / ".sdoslam-commit.json")) << step;
+    }
+    // And the next run into the folder commits as usual, and tidies up.
+    CommitSet(out, kOldSet);
+    EXPECT_EQ(VerifiedSet(out), kOldSet) << step;
+    EXPECT_EQ(CountStaging(out), 0) << step;
+    if (!was_killed) break;
+    ++killed;
+  }
+  EXPECT_GE(killed, 10);  // the journal, the old manifest, each rename and removal
 }
 
 TEST(ResultSet, AStagingFolderOfACutOffRunIsRefusedByReadersAndRemovedByTheNextRun) {

@@ -264,7 +264,8 @@ SequenceSummary WriteBackgroundSequence(const BackgroundSynthOptions& options,
   const Scene scene = MakeBackgroundScene(options.scenario, placement);
   const Camera camera(options.camera);
 
-  SequenceWriter writer(out, overwrite, options.scenario + " over " + options.background.string());
+  SequenceWriter writer(out, overwrite, options.scenario + " over " + options.background.string(),
+                        {options.background});
   double render_seconds = 0;
   for (size_t i = 0; i < order.size(); ++i) {
     const auto render_start = std::chrono::steady_clock::now();

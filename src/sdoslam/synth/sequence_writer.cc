@@ -1,13 +1,12 @@
 #include "sdoslam/synth/sequence_writer.h"
 
-#include <unistd.h>
-
 #include <cstdio>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
+#include "sdoslam/core/interrupt.h"
 
 namespace sdoslam::synth {
 namespace {
@@ -34,14 +33,15 @@ std::string PoseFields(const Eigen::Isometry3d& T) {
 
 }  // namespace
 
-SequenceWriter::SequenceWriter(std::filesystem::path out, bool overwrite, const std::string& title)
+SequenceWriter::SequenceWriter(std::filesystem::path out, bool overwrite, const std::string& title,
+                               std::vector<std::filesystem::path> inputs)
     : out_(std::move(out)) {
-  if (std::filesystem::exists(out_) && !std::filesystem::is_empty(out_) && !overwrite) {
-    throw Error(out_.string() + " exists and is not empty (use --overwrite to replace it)");
-  }
-  staging_ = out_;
-  staging_ += ".partial-" + std::to_string(::getpid());
-  std::filesystem::remove_all(staging_);
+  OutputFolderOptions options;
+  options.kind = kSyntheticSequenceKind;
+  options.overwrite = overwrite;
+  options.inputs = std::move(inputs);
+  folder_ = std::make_unique<OutputFolder>(out_, options);
+  staging_ = folder_->staging();
   for (const char* sub : {"rgb", "depth", "instance", "dynamic"}) {
     std::filesystem::create_directories(staging_ / sub);
   }
@@ -50,16 +50,11 @@ SequenceWriter::SequenceWriter(std::filesystem::path out, bool overwrite, const 
   object_poses_ = "# timestamp object_id tx ty tz qx qy qz qw (world frame)\n";
 }
 
-SequenceWriter::~SequenceWriter() {
-  if (!finished_) {
-    std::error_code ignored;
-    std::filesystem::remove_all(staging_, ignored);
-  }
-}
-
 void SequenceWriter::AddFrame(double stamp_value, double t, double dt, const SensorFrame& frame,
                               const cv::Mat& instance, const Eigen::Isometry3d& T_world_camera,
                               const Scene& scene) {
+  // Ctrl-C between frames: the staged frames go (OutputFolder), an earlier `out` stays.
+  if (InterruptHandler::Requested()) throw Interrupted();
   const std::string stamp = Stamp(stamp_value);
   cv::Mat dynamic = cv::Mat::zeros(instance.size(), CV_8UC1);
   nlohmann::json frame_detections = nlohmann::json::array();
@@ -127,10 +122,7 @@ SequenceSummary SequenceWriter::Finish(const CameraOptions& camera, const Scene&
   WriteFileAtomically(staging_ / "sequence.yaml",
                       [&](std::ostream& o) { o << info.c_str() << '\n'; });
 
-  if (std::filesystem::exists(out_)) std::filesystem::remove_all(out_);
-  if (out_.has_parent_path()) std::filesystem::create_directories(out_.parent_path());
-  std::filesystem::rename(staging_, out_);
-  finished_ = true;
+  folder_->Commit();
   SequenceSummary summary = summary_;
   summary.dynamic_fraction_mean /= summary.frames;
   return summary;

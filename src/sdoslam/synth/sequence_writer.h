@@ -3,16 +3,22 @@
 #include <yaml-cpp/yaml.h>
 
 #include <filesystem>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <string>
+#include <vector>
 
 #include "sdoslam/core/camera.h"
+#include "sdoslam/io/output_folder.h"
 #include "sdoslam/io/trajectory.h"
 #include "sdoslam/synth/scene.h"
 #include "sdoslam/synth/sensor.h"
 
 namespace sdoslam::synth {
+
+// The kind in the marker of a synthetic sequence's folder (io/output_folder.h).
+inline constexpr char kSyntheticSequenceKind[] = "synthetic sequence";
 
 struct SequenceSummary {
   int frames = 0;
@@ -24,13 +30,17 @@ struct SequenceSummary {
 
 // Writes a sequence with ground truth, frame by frame, in the layout `sdoslam run`, `eval` and
 // `eval-masks` read (see WriteSequence). Everything goes to a sibling staging folder first and
-// is moved into place by Finish(), so a failed run never leaves a half-written sequence; an
-// existing non-empty `out` is an error unless `overwrite`. Shared by the synthetic rooms and the
-// real-background sequences so that both give the same ground truth.
+// is switched into place by Finish() (io/output_folder.h), so a failed or killed run never
+// leaves a half-written sequence; an existing non-empty `out` is an error unless `overwrite`,
+// and even then is replaced only when it is an earlier synthetic sequence holding nothing else.
+// `inputs` (a real recording the sequence is rendered over) may not be `out` or around it.
+// Shared by the synthetic rooms and the real-background sequences so that both give the same
+// ground truth.
 class SequenceWriter {
  public:
-  SequenceWriter(std::filesystem::path out, bool overwrite, const std::string& title);
-  ~SequenceWriter();  // removes the staging folder when Finish() was not reached
+  SequenceWriter(std::filesystem::path out, bool overwrite, const std::string& title,
+                 std::vector<std::filesystem::path> inputs = {});
+  ~SequenceWriter() = default;  // OutputFolder removes the staging folder without Finish()
   SequenceWriter(const SequenceWriter&) = delete;
   SequenceWriter& operator=(const SequenceWriter&) = delete;
 
@@ -48,7 +58,7 @@ class SequenceWriter {
 
  private:
   std::filesystem::path out_, staging_;
-  bool finished_ = false;
+  std::unique_ptr<OutputFolder> folder_;
   SequenceSummary summary_;
   std::string rgb_list_, depth_list_, object_poses_;
   Trajectory ground_truth_;
