@@ -9,9 +9,13 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <fstream>
+#include <nlohmann/json.hpp>
 #include <random>
+#include <set>
 #include <thread>
 
+#include "sdoslam/io/output_folder.h"
 #include "sdoslam/io/result_set.h"
 #include "sdoslam/io/trajectory.h"
 #include "sdoslam/testing/test_util.h"
@@ -144,6 +148,121 @@ TEST_F(Interrupts, TwentyRandomInterruptsLeaveTheOldSetOrTheNewNeverAMix) {
   EXPECT_GE(evaluated, 5);
   std::cout << interrupted_sets << " interrupted sets (" << evaluated << " evaluated), " << aborted
             << " aborted by a second signal\n";
+}
+
+// The files a folder of ours lists in its marker, and those it holds: equal when complete.
+std::pair<std::set<std::string>, std::set<std::string>> ListedAndPresent(const fs::path& folder) {
+  std::set<std::string> listed, present;
+  std::ifstream in(folder / kOutputFolderMarker);
+  const nlohmann::json marker = nlohmann::json::parse(in);  // alive through the loop
+  for (const auto& f : marker.at("files")) listed.insert(f.get<std::string>());
+  for (const auto& e : fs::recursive_directory_iterator(folder)) {
+    const std::string name = fs::relative(e.path(), folder).generic_string();
+    if (e.is_regular_file() && name != kOutputFolderMarker) present.insert(name);
+  }
+  return {listed, present};
+}
+
+size_t FramesListed(const fs::path& sequence) {
+  return ReadTumTrajectory(sequence / "groundtruth.txt").size();
+}
+
+int CountHidden(const fs::path& parent) {
+  int n = 0;
+  for (const auto& e : fs::directory_iterator(parent))
+    n += e.path().filename().string().find(".sdoslam-") != std::string::npos;
+  return n;
+}
+
+// Ctrl-C during `synth --overwrite`: the frames written so far go, the earlier folder stays
+// whole, nothing is left beside it, and the exit code says it was interrupted.
+TEST_F(Interrupts, AnInterruptedSynthLeavesTheEarlierSequenceAndNothingElse) {
+  const fs::path out = *dir_ / "interrupted_synth";
+  const Outcome first = RunAndSignal(
+      {"synth", "--scenario", "static_room", "--frames", "3", "--out", out.string()},
+      std::chrono::milliseconds(0), {});
+  ASSERT_TRUE(first.exited && first.code == 0);
+  for (const int signal : {SIGINT, SIGTERM}) {
+    const Outcome o = RunAndSignal({"synth", "--scenario", "walking_xyz", "--frames", "300",
+                                    "--out", out.string(), "--overwrite"},
+                                   std::chrono::milliseconds(700), {signal});
+    ASSERT_TRUE(o.exited);
+    EXPECT_EQ(o.code, 128 + signal);
+    EXPECT_EQ(FramesListed(out), 3u);
+    EXPECT_EQ(CountHidden(dir_->path()), 0);
+  }
+}
+
+// SIGKILL (no handler, no clean-up) at random moments of `run`, `synth --overwrite` and
+// `convert --overwrite`: the folder holds the earlier complete results or the new complete ones,
+// and the next write tidies away what the killed one left beside them.
+TEST_F(Interrupts, TwentyRandomKillsOfEachWriterLeaveTheOldResultsOrTheNewOnes) {
+  std::mt19937 random(23);
+  const fs::path out = *dir_ / "killed_run";
+  const std::vector<std::string> run = {
+      "run",   "--dataset",  Seq().string(), "--config",     (Seq() / "camera.yaml").string(),
+      "--out", out.string(), "--sequential", "--max-frames", "40"};
+  std::uniform_int_distribution<int> run_delay(50, 2500);
+  int run_changed = 0;
+  for (int trial = 0; trial < 20; ++trial) {
+    SCOPED_TRACE("run trial " + std::to_string(trial));
+    const std::string before =
+        fs::exists(out / kManifestName) ? testing::ReadText(out / kManifestName) : "";
+    RunAndSignal(run, std::chrono::milliseconds(run_delay(random)), {SIGKILL});
+    if (!fs::exists(out / kManifestName) && !fs::exists(out / ".sdoslam-commit.json") &&
+        before.empty())
+      continue;                                     // killed before it had decided on any set
+    const ResultManifest m = VerifyResultSet(out);  // finishes a commit the kill cut off
+    EXPECT_EQ(m.status, "complete");
+    run_changed += testing::ReadText(out / kManifestName) != before;
+  }
+  EXPECT_GE(run_changed, 3);
+
+  // synth and convert: frame counts alternate, so the old folder and the new one differ.
+  const fs::path synth_out = *dir_ / "killed_synth", copy_out = *dir_ / "killed_copy";
+  std::uniform_int_distribution<int> synth_delay(20, 1200);
+  int synth_replaced = 0, copy_replaced = 0;
+  for (int trial = 0; trial < 20; ++trial) {
+    SCOPED_TRACE("synth/convert trial " + std::to_string(trial));
+    const size_t frames = 8 + trial % 2;
+    const size_t before = fs::exists(synth_out) ? FramesListed(synth_out) : 0;
+    RunAndSignal({"synth", "--scenario", "walking_static", "--frames", std::to_string(frames),
+                  "--out", synth_out.string(), "--overwrite"},
+                 std::chrono::milliseconds(synth_delay(random)), {SIGKILL});
+    if (fs::exists(synth_out)) {
+      const auto [listed, present] = ListedAndPresent(synth_out);
+      EXPECT_EQ(listed, present);
+      const size_t after = FramesListed(synth_out);
+      EXPECT_TRUE(after == before || after == frames) << after;
+      synth_replaced += after != before;
+    }
+    const size_t copy_before = fs::exists(copy_out) ? FramesListed(copy_out) : 0;
+    const size_t copy_frames = fs::exists(synth_out) ? FramesListed(synth_out) : 0;
+    if (copy_frames == 0) continue;
+    RunAndSignal(
+        {"convert", "--dataset", synth_out.string(), "--out", copy_out.string(), "--overwrite"},
+        std::chrono::milliseconds(synth_delay(random) / 4), {SIGKILL});
+    if (fs::exists(copy_out)) {
+      const auto [listed, present] = ListedAndPresent(copy_out);
+      EXPECT_EQ(listed, present);
+      const size_t after = FramesListed(copy_out);
+      EXPECT_TRUE(after == copy_before || after == copy_frames) << after;
+      copy_replaced += after != copy_before;
+    }
+  }
+  EXPECT_GE(synth_replaced, 3);
+  // What the killed writers left beside their folders goes with the next complete write.
+  const Outcome synth = RunAndSignal({"synth", "--scenario", "walking_static", "--frames", "3",
+                                      "--out", synth_out.string(), "--overwrite"},
+                                     std::chrono::milliseconds(0), {});
+  ASSERT_TRUE(synth.exited && synth.code == 0);
+  const Outcome copy = RunAndSignal(
+      {"convert", "--dataset", synth_out.string(), "--out", copy_out.string(), "--overwrite"},
+      std::chrono::milliseconds(0), {});
+  ASSERT_TRUE(copy.exited && copy.code == 0);
+  EXPECT_EQ(CountHidden(dir_->path()), 0);
+  std::cout << run_changed << " runs, " << synth_replaced << " synths, " << copy_replaced
+            << " converts got their new results in before the kill\n";
 }
 
 }  // namespace
