@@ -275,12 +275,20 @@ TEST(OmdSequence, BadFoldersAreClearErrors) {
   EXPECT_NE(message.find("no camera named 'cam7' (cameras: cam0 (/stereo/left/image_raw)"),
             std::string::npos)
       << message;
-  // An existing segment is kept unless replacing is asked for, and then replaced whole.
+  // An existing segment is kept unless replacing is asked for, and then replaced whole; a file
+  // the user put into it makes it theirs, and it is not replaced.
   message = testing::MessageOf([&] { WriteOmdFromTum(dir / "tum", dir / "omd2", Extrinsics()); });
-  EXPECT_NE(message.find("omd2 exists; pass --overwrite"), std::string::npos) << message;
-  testing::WriteText(dir / "omd2" / "stale.txt", "from an earlier run");
+  EXPECT_NE(message.find("omd2 exists and is not empty (pass --overwrite"), std::string::npos)
+      << message;
+  testing::WriteText(dir / "omd2" / "notes.txt", "the user's");
+  message = testing::MessageOf(
+      [&] { WriteOmdFromTum(dir / "tum", dir / "omd2", Extrinsics(), /*overwrite=*/true); });
+  EXPECT_NE(message.find("notes.txt, which sdoslam did not write"), std::string::npos) << message;
+  EXPECT_EQ(testing::ReadText(dir / "omd2" / "notes.txt"), "the user's");
+  std::filesystem::remove(dir / "omd2" / "notes.txt");
+  std::filesystem::remove(dir / "omd2" / "vicon.csv");  // a segment missing a file of its own
   WriteOmdFromTum(dir / "tum", dir / "omd2", Extrinsics(), /*overwrite=*/true);
-  EXPECT_FALSE(std::filesystem::exists(dir / "omd2" / "stale.txt"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "omd2" / "vicon.csv"));
   EXPECT_EQ(ReadOmdSequence(dir / "omd2").entries.size(), 3u);
   std::filesystem::remove(dir / "omd2" / "vicon.yaml");
   message = testing::MessageOf([&] { ReadOmdSequence(dir / "omd2"); });

@@ -639,7 +639,7 @@ TEST_F(SequenceTest, SameSeedGivesByteIdenticalFilesAndOtherSeedsDiffer) {
         << relative;
     ++files;
   }
-  EXPECT_EQ(files, 16);  // 4 images × 2 frames + 8 lists, poses, configs and JSON
+  EXPECT_EQ(files, 17);  // 4 images × 2 frames + 8 lists, poses, configs and JSON + marker
   const auto rgb = std::filesystem::path("rgb") / "1000.000000.png";
   EXPECT_NE(testing::ReadText(dir_ / "a" / rgb), testing::ReadText(dir_ / "c" / rgb));
   EXPECT_EQ(testing::ReadText(dir_ / "a" / "groundtruth.txt"),
@@ -654,8 +654,14 @@ TEST_F(SequenceTest, NeverOverwritesAnExistingSequenceUnlessAsked) {
   SynthOptions bad = Options("nope", 1, false);
   EXPECT_THROW(WriteSequence(bad, dir_ / "x"), Error);
   EXPECT_FALSE(std::filesystem::exists(dir_ / "x"));
+  // Not even when asked: the folder holds a file synth did not write.
+  EXPECT_THROW(WriteSequence(Options("static_room", 1, false), out, /*overwrite=*/true), Error);
+  EXPECT_EQ(testing::ReadText(out / "precious.txt"), "earlier result");
+  // An earlier sequence of its own it replaces when asked.
+  std::filesystem::remove(out / "precious.txt");
+  WriteSequence(Options("static_room", 2, false), out);
   WriteSequence(Options("static_room", 1, false), out, /*overwrite=*/true);
-  EXPECT_FALSE(std::filesystem::exists(out / "precious.txt"));
+  EXPECT_FALSE(std::filesystem::exists(out / "rgb" / "1000.033333.png"));  // frame 2 went
   EXPECT_TRUE(std::filesystem::exists(out / "rgb.txt"));
 }
 
