@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
-# The real-background battery the README's accuracy figures come from: 15 plays (carried_box,
+# The real-background battery docs/results.md's accuracy figures come from: 15 plays (carried_box,
 # swinging_boxes, people, mixed and person_fills_view over ../shared/data/tum_fr2_desk_50, seeds
 # 1-3, played forward and backward), each run sequentially (bit-for-bit repeatable) at five ORB
 # feature counts, since one deterministic run of the 15 moves by a few millimetres for any change
-# at all (README, "Robustness to small perturbations"). Prints the ATE summed over the plays for
-# each count, their mean, and per kind the mean over the counts and the keyframes made.
+# at all (docs/results.md, "Robustness to small perturbations"). Prints the ATE summed over the
+# plays for each count, their mean, and per kind the mean over the counts and the keyframes made.
 #
 #   scripts/plays.sh [--mode sdo|oracle|conventional] [--set 'YAML'] [--counts '1000 980 ...']
 #                    [--work DIR] [--bin build/sdoslam]

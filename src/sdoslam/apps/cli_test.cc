@@ -45,7 +45,7 @@ TEST(Cli, HelpListsSubcommands) {
 }
 
 TEST(Cli, CommandLineMistakesFailWithAMessage) {
-  // Usage errors: exit code 2 (the README's table).
+  // Usage errors: exit code 2 (the exit-code table in docs/usage.md).
   Result r = RunSdoslam("");
   EXPECT_EQ(r.exit_code, 2);
   r = RunSdoslam("eval --est x.txt");
@@ -544,7 +544,7 @@ TEST_F(CliRun, EmptySequenceAndNoDepthAtTheStartAreClearErrors) {
       << output;
 }
 
-// The README's exit-code table, row by row (130 and 143: signal_test; 3 is for bugs).
+// The exit-code table in docs/usage.md, row by row (130 and 143: signal_test; 3 is for bugs).
 TEST_F(CliRun, ExitCodesFollowTheReadmeTable) {
   const std::string seq = (dir_ / "seq").string();
   const std::string config = (dir_ / "seq" / "camera.yaml").string();

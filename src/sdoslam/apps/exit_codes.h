@@ -1,6 +1,6 @@
 #pragma once
 
-// The exit codes of the `sdoslam` command, one table (the README's "Exit codes" mirrors it and
+// The exit codes of the `sdoslam` command, one table (docs/usage.md's "Exit codes" mirrors it and
 // cli_test walks it).
 namespace sdoslam {
 

@@ -153,7 +153,7 @@ void AddRunCommand(CLI::App& app) {
   cmd->add_option(
          "--config", args->config,
          "config YAML: camera: and optional orb:, rgbd:, tracking:, mapping:, loop_closing:, "
-         "vocabulary:, dynamic: (README: the keys)")
+         "vocabulary:, dynamic: (docs/configuration.md: the keys)")
       ->required();
   cmd->add_option("--out", args->out, "output folder")->required();
   cmd->add_option("--associations", args->associations, "explicit rgb/depth association file");

@@ -16,7 +16,7 @@ namespace sdoslam {
 
 // A pinhole RGB-D camera with radial-tangential (OpenCV "plumb bob") distortion, as the TUM and
 // Bonn datasets publish their calibration.
-// Bounds CameraOptions::Check() puts on the distortion coefficients (README, camera config).
+// Bounds CameraOptions::Check() puts on the distortion coefficients (docs/configuration.md).
 inline constexpr double kMaxRadialK12 = 10;  // |k1|, |k2|
 inline constexpr double kMaxRadialK3 = 100;  // |k3|
 inline constexpr double kMaxTangential = 1;  // |p1|, |p2|

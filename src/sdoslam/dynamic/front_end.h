@@ -35,7 +35,7 @@ struct FrontEndOptions {
   // segmenter's 5 ms a frame (sdo instructions -9 % on the mixed play, callgrind, 40 frames), but
   // a person filling the view moves too far in a frame: person_fills_view 18.6 -> 21.3 mm (the
   // 15 real-background plays 80.8 -> 84.1 mm) and its held-out seeds 4-6 5.3 -> 6.7 mm on
-  // average (README, Threads and frame rate).
+  // average (README.md's git history, "the segmenter on every frame still").
   int segment_every = 1;
 
   std::string detector = "hog";           // nanodet | fastestdet | yolov8 | hog | file | none

@@ -19,7 +19,7 @@ using testing::RenderFrame;
 
 // People (ids 1, 2) and hanging pendulum boxes (11–13). Not the box sliding on the floor (14):
 // with a similar colour and no depth step along its contact line it merges with the floor, a
-// known limit of the default segmenter (the README says so).
+// known limit of this segmenter.
 TEST(RgbdSegmenter, SeparatesPeopleAndBoxesFromTheRoomByDepth) {
   const std::map<std::string, std::vector<int>> objects_of = {
       {"walking_xyz", {1, 2}}, {"boxes_translational", {11, 12, 13}}};

@@ -16,11 +16,11 @@ struct LocalMapperOptions {
   int triangulation_neighbours = 10;  // covisible keyframes to triangulate new points with
   double min_found_ratio = 0.25;      // recent points found less often than this are culled
   double redundant_ratio = 0.9;       // keyframes with this share of redundant points are culled
-  // In that share, points past their probation (three keyframes) that at most this many
-  // keyframes observe do not count: a place seen once or twice is a mover's trace or noise,
-  // and would keep its keyframe forever. ORB-SLAM2 counts every point (0 here). With 2, a
-  // conventional run among walking people keeps 88 keyframes at frame 1,000 instead of 340
-  // (README, Long runs); sdo's maps, where movers leave no points, barely change.
+  // In that share, points past their probation (three keyframes) that at most this many keyframes
+  // observe do not count: a place seen once or twice is a mover's trace or noise, and would keep
+  // its keyframe forever. ORB-SLAM2 counts every point (0 here). With 2, a conventional run among
+  // walking people keeps 88 keyframes at frame 1,000 instead of 340 (README.md's git history, Long
+  // runs); sdo's maps, where movers leave no points, barely change.
   int transient_observations = 2;
   // A bound on keyframes per viewpoint, for maps that the rules above leave growing: where
   // tracking stays weak (conventional mode among walking people) nearly every frame becomes a
@@ -36,14 +36,14 @@ struct LocalMapperOptions {
   double crowded_distance = 1.0;
   double crowded_angle_deg = 60;
   int crowded_keyframes = 30;
-  // The local window, so that a keyframe's cost follows the place, not the length of the run:
-  // local BA refines the new keyframe and its `local_keyframes` most covisible neighbours
-  // (keyframe culling looks at those same neighbours), holding fixed the `fixed_keyframes`
-  // other keyframes that observe most of the window's points. Observations from keyframes
-  // outside both sets are left out of the adjustment. 10 rather than 20: where movers hide
-  // much of the room, sdo makes a keyframe every 3 frames, and 20 neighbours made each BA cost
-  // 30+ ms; with 10, sdo's ATE over 13 real-frame sequences is 68.9 against 70.6 mm summed, and
-  // the 3,000-frame walking_xyz soak's keyframes 2.8 against 3.5 mm (README, Long runs).
+  // The local window, so that a keyframe's cost follows the place, not the length of the run: local
+  // BA refines the new keyframe and its `local_keyframes` most covisible neighbours (keyframe
+  // culling looks at those same neighbours), holding fixed the `fixed_keyframes` other keyframes
+  // that observe most of the window's points. Observations from keyframes outside both sets are
+  // left out of the adjustment. 10 rather than 20: where movers hide much of the room, sdo makes a
+  // keyframe every 3 frames, and 20 neighbours made each BA cost 30+ ms; with 10, sdo's ATE over 13
+  // real-frame sequences is 68.9 against 70.6 mm summed, and the 3,000-frame walking_xyz soak's
+  // keyframes 2.8 against 3.5 mm (README.md's git history, Long runs).
   int local_keyframes = 10;
   int fixed_keyframes = 10;
   // A local BA's cost follows its observations. In a room the camera never leaves, the bounded
@@ -67,13 +67,13 @@ struct LocalMapperOptions {
   bool stop_ba_for_new_keyframe = true;
   // A keyframe made fewer than this many frames after the last keyframe whose local BA ran gets
   // none (0 or 1: every keyframe gets one); the next keyframe's BA covers nearly the same window.
-  // 3: where movers hide much of the room sdo makes a keyframe every second frame, and each BA
-  // then solves almost the window of the one before. On the mixed play 27 keyframes get 20 BAs
-  // instead of 25-27, local BA's instructions fall 40 % (callgrind, 40 frames: 2.58 -> 1.55 G) and
-  // threaded sdo's process CPU 7 % (3.12 -> 2.90 s, medians of 5); accuracy the same
-  // (scripts/plays.sh 79.7 -> 79.6 mm, held-out seeds 4-6 49.8 -> 49.6, fr2_desk_50 byte for
-  // byte, 3,000 frames of walking_xyz 4.4 -> 4.6 mm). 5: the plays 79.3 but the held-out seeds
-  // 50.7 (person_fills_view seed 4 5.3 -> 6.6). README, "Local BA once in three frames".
+  // 3: where movers hide much of the room sdo makes a keyframe every second frame, and each BA then
+  // solves almost the window of the one before. On the mixed play 27 keyframes get 20 BAs instead
+  // of 25-27, local BA's instructions fall 40 % (callgrind, 40 frames: 2.58 -> 1.55 G) and threaded
+  // sdo's process CPU 7 % (3.12 -> 2.90 s, medians of 5); accuracy the same (scripts/plays.sh 79.7
+  // -> 79.6 mm, held-out seeds 4-6 49.8 -> 49.6, fr2_desk_50 byte for byte, 3,000 frames of
+  // walking_xyz 4.4 -> 4.6 mm). 5: the plays 79.3 but the held-out seeds 50.7 (person_fills_view
+  // seed 4 5.3 -> 6.6). README.md's git history, "Local BA once in three frames".
   int min_frames_between_local_ba = 3;
   void Check(const std::string& path = "mapping.") const;  // Error names path + setting
   // Every setting, as its config key (core/config.h: ReadFields, WriteFields).

@@ -29,7 +29,7 @@ struct SensorOptions {
   int motion_blur_samples = 0;       // > 1: average this many renderings over the exposure
   double exposure_time = 0.015;      // seconds, for motion blur
   // Rays per pixel side for the colour image (synth/renderer.h, RenderColour): 1 renders one ray
-  // through each pixel centre (aliased edges, the default the README's figures use); 2 or more
+  // through each pixel centre (aliased edges, the default docs/results.md's figures use); 2 or more
   // average that many squared over each pixel, as a camera's photosites do.
   int supersampling = 1;
 

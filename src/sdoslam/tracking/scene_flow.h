@@ -68,7 +68,7 @@ struct SceneFlowOptions {
   // pixel, so 15 px rows spent half their instructions on 7-pixel tails. 16 px rows have none:
   // its Lucas-Kanade 4.22 -> 2.04 G instructions, the sdo run 19.05 -> 16.90 G (callgrind, 40
   // frames of the mixed play), with accuracy the same or better (scripts/plays.sh 81.3 -> 80.8
-  // mm; README "A 16-pixel window").
+  // mm; docs/performance.md; the measurements: README.md's git history, "A 16-pixel window").
   int track_window = 16;
   int track_levels = 2;
   // Lucas–Kanade's iterations per pyramid level (it also stops at 0.03 px). 10, not OpenCV's

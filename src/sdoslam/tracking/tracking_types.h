@@ -30,8 +30,8 @@ struct TrackerOptions {
   // rule fires on every second frame: sdo made 27 keyframes in the mixed play's 50 frames (the
   // oracle 14), each local BA 20-50 ms. With 2: 20 keyframes there, local mapping's instructions
   // -19 % (callgrind, 40 frames), the 15 real-background plays 80.8 -> 79.8 mm, the held-out
-  // seeds 4-6 50.4 mm summed either way, the real clip unchanged (README, Threads and frame
-  // rate). 3: the plays 82.4 mm.
+  // seeds 4-6 50.4 mm summed either way, the real clip unchanged (README.md's git history,
+  // "Keyframes two frames apart"). 3: the plays 82.4 mm.
   int min_frames_between_keyframes = 2;
   double reference_ratio = 0.75;    // keyframe when tracking less than this of the reference
   int min_close_points = 100;       // keyframe when fewer close points are tracked...
@@ -71,7 +71,7 @@ struct TrackerOptions {
   // the static room, 626 static features with depth or more), and features labelled static may
   // lie on the person. Two frames, because one is no evidence: the synthetic loop's frame two
   // after its relocalization has 3 samples, its past frame having been covered. Either 0 turns
-  // the rule off (README: Robustness to small perturbations).
+  // the rule off (docs/results.md: Robustness to small perturbations).
   int keyframes_min_static_samples = 15;
   int keyframes_min_static_features = 300;
   SceneFlowOptions consistency;  // the scene-flow consistency check and map hygiene
