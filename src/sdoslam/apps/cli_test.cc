@@ -1,7 +1,9 @@
 // Runs the real `sdoslam` executable as a user would and checks exit codes, messages and files.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <array>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -616,6 +618,30 @@ TEST_F(CliRun, AFrontEndOptionInAModeWithoutFrontEndIsAWarning) {
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("--detector-model has no effect in mode conventional"), std::string::npos)
       << r.output;
+}
+
+// A FIFO, /dev/zero or a folder where a file is read: `vocab info /dev/zero` grew to 4 GB, a FIFO
+// hung every command. Each now fails at once, naming the path, exit code 1.
+TEST(CliFiles, WhatIsNoRegularFileFailsAtOnce) {
+  testing::TempDir dir;
+  const std::string fifo = (dir / "fifo").string();
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  testing::WriteText(dir / "gt.txt",
+                     "100.0 0 0 0 0 0 0 1\n100.1 1 0 0 0 0 0 1\n100.2 1 1 0 0 0 0 1\n");
+  const std::string gt = (dir / "gt.txt").string();
+  for (const std::string& path : {fifo, std::string("/dev/zero"), dir.path().string()}) {
+    for (const std::string& command :
+         {"vocab info " + path, "eval --no-plots --gt " + path + " --est " + gt,
+          "eval --no-plots --gt " + gt + " --est " + path,
+      const auto start = std::chrono::steady_clock::now();
+      const Result r = RunSdoslam(command);
+      EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
+                2.0)
+          << command;
+      EXPECT_EQ(r.exit_code, 1) << command << "\n" << r.output;
+      EXPECT_EQ(r.output, "error: " + path + ": not a regular file\n") << command;
+    }
+  }
 }
 
 TEST(CliVocab, BuildsAVocabularyFromImageFoldersAndNamesBadInput) {

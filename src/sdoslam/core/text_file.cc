@@ -3,20 +3,18 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
-#include <fstream>
 #include <sstream>
 
 #include "sdoslam/core/error.h"
+#include "sdoslam/core/regular_file.h"
 
 namespace sdoslam {
 
 void ForEachDataLine(const std::filesystem::path& path,
                      const std::function<void(int, const std::vector<std::string>&)>& on_line) {
-  std::ifstream in(path);
-  if (!in) {
-    throw Error(std::filesystem::exists(path) ? "cannot read file " + path.string()
-                                              : "file not found: " + path.string());
-  }
+  const std::optional<std::string> text = ReadRegularFileIfExists(path);
+  if (!text) throw Error("file not found: " + path.string());
+  std::istringstream in(*text);
   std::string line;
   std::vector<std::string> tokens;
   int line_number = 0;

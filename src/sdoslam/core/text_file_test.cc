@@ -1,6 +1,7 @@
 #include "sdoslam/core/text_file.h"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include "sdoslam/core/error.h"
 #include "sdoslam/testing/test_util.h"
@@ -42,6 +43,16 @@ TEST(TextFile, ParseDoubleRejectsGarbageAndNonFinite) {
   } catch (const Error& e) {
     EXPECT_EQ(std::string(e.what()), "traj.txt:7: tx 'oops' is not a number");
   }
+}
+
+// A list that is a FIFO blocked the reader; one that is a folder read as empty.
+TEST(TextFile, AListThatIsNoRegularFileIsRefused) {
+  testing::TempDir dir;
+  ASSERT_EQ(mkfifo((dir / "rgb.txt").c_str(), 0600), 0);
+  EXPECT_EQ(testing::MessageOf([&] { ForEachDataLine(dir / "rgb.txt", [](int, const auto&) {}); }),
+            (dir / "rgb.txt").string() + ": not a regular file");
+  EXPECT_EQ(testing::MessageOf([&] { ForEachDataLine(dir.path(), [](int, const auto&) {}); }),
+            dir.path().string() + ": not a regular file");
 }
 
 }  // namespace

@@ -12,6 +12,7 @@
 
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
+#include "sdoslam/core/regular_file.h"
 #include "sdoslam/core/text_file.h"
 #include "sdoslam/io/png_reader.h"
 
@@ -93,8 +94,9 @@ bool ParseNumber(const std::string& s, double* value) {
 }
 
 std::vector<std::string> ReadTextLines(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  if (!in) throw Error(path.string() + ": cannot open");
+  const std::optional<std::string> text = ReadRegularFileIfExists(path);
+  if (!text) throw Error(path.string() + ": cannot open");
+  std::istringstream in(*text);
   std::vector<std::string> lines;
   for (std::string line; std::getline(in, line);) lines.push_back(line);
   return lines;

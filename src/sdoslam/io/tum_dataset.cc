@@ -5,6 +5,7 @@
 #include <string>
 
 #include "sdoslam/core/error.h"
+#include "sdoslam/core/regular_file.h"
 #include "sdoslam/core/text_file.h"
 #include "sdoslam/core/timestamps.h"
 #include "sdoslam/io/dataset.h"
@@ -101,9 +102,8 @@ TumDataset::TumDataset(const std::filesystem::path& folder, const CameraOptions&
 
   for (const RgbdFrameEntry& entry : entries_) {
     for (const auto* path : {&entry.rgb_path, &entry.depth_path}) {
-      if (!std::filesystem::is_regular_file(*path)) {
-        throw Error("listed image not found: " + path->string());
-      }
+      if (!std::filesystem::exists(*path)) throw Error("listed image not found: " + path->string());
+      RejectNonRegularFile(*path);
     }
   }
 }

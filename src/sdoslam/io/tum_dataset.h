@@ -42,7 +42,8 @@ struct TumDatasetOptions {
 class TumDataset {
  public:
   // Throws Error for a missing folder or list, a malformed line (file:line), timestamps that do
-  // not increase, a listed image that does not exist, or no associated frame at all.
+  // not increase, a listed image that does not exist or is not a regular file, or no associated
+  // frame at all.
   TumDataset(const std::filesystem::path& folder, const CameraOptions& camera,
              const TumDatasetOptions& options = {});
 

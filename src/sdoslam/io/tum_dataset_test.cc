@@ -1,6 +1,7 @@
 #include "sdoslam/io/tum_dataset.h"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -145,6 +146,28 @@ TEST_F(TumDatasetTest, UndecodableWrongSizeAndEightBitDepth) {
   EXPECT_EQ(ErrorOf({}, SmallCamera(), 2),
             (dir_ / "depth" / "1.204000.png").string() +
                 ": depth must be a 16-bit single-channel PNG, found 8-bit with 3 channel(s)");
+}
+
+// A listed image that is a FIFO would block the reader: refused when the dataset is opened, and,
+// swapped in after that, when the frame is read.
+TEST_F(TumDatasetTest, AListedImageThatIsNoRegularFileIsNamed) {
+  const auto image = dir_ / "rgb" / "1.200000.png";
+  {
+    TumDataset dataset(dir_.path(), SmallCamera());
+    std::filesystem::remove(image);
+    ASSERT_EQ(mkfifo(image.c_str(), 0600), 0);
+    EXPECT_EQ(testing::MessageOf([&] { dataset.Load(2); }),
+              image.string() + ": not a regular file");
+    EXPECT_NO_THROW(dataset.Load(3));
+  }
+  EXPECT_EQ(ErrorOf(), image.string() + ": not a regular file");
+  std::filesystem::remove(image);
+  std::filesystem::create_directory(image);
+  EXPECT_EQ(ErrorOf(), image.string() + ": not a regular file");
+  // The lists themselves.
+  std::filesystem::remove(dir_ / "rgb.txt");
+  ASSERT_EQ(mkfifo((dir_ / "rgb.txt").c_str(), 0600), 0);
+  EXPECT_EQ(ErrorOf(), (dir_ / "rgb.txt").string() + ": not a regular file");
 }
 
 TEST(TumDatasetReal, AssociationReproducesTheShippedAssociationsFile) {
