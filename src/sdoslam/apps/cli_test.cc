@@ -573,6 +573,19 @@ TEST_F(CliRun, ExitCodesFollowTheReadmeTable) {
   EXPECT_EQ(ReadTumTrajectory(dir_ / "out" / "CameraTrajectory.txt").size(), 3u);
 }
 
+// Ten levels of ten YAML aliases in a --config ran for more than 70 s before failing.
+TEST_F(CliRun, AnAliasBombConfigFailsAtOnce) {
+  testing::WriteText(dir_ / "bomb.yaml", testing::YamlAliasBomb(10));
+  const auto start = std::chrono::steady_clock::now();
+  const std::string output = Run((dir_ / "bomb.yaml").string(), (dir_ / "seq").string());
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 2.0);
+  EXPECT_EQ(last_.exit_code, 1) << output;
+  EXPECT_NE(
+      output.find("error: " + (dir_ / "bomb.yaml").string() + ": more than 100000 YAML nodes"),
+      std::string::npos)
+      << output;
+}
+
 // A run's config.yaml alone repeats the run: dataset, frame range and threading are in it.
 TEST_F(CliRun, ARunsConfigYamlRerunsItBitIdentically) {
   const std::string first = (dir_ / "first").string(), second = (dir_ / "second").string();
@@ -633,6 +646,8 @@ TEST(CliFiles, WhatIsNoRegularFileFailsAtOnce) {
     for (const std::string& command :
          {"vocab info " + path, "eval --no-plots --gt " + path + " --est " + gt,
           "eval --no-plots --gt " + gt + " --est " + path,
+          "run --dataset " + dir.path().string() + " --config " + path + " --out " +
+              (dir / "out").string()}) {
       const auto start = std::chrono::steady_clock::now();
       const Result r = RunSdoslam(command);
       EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),

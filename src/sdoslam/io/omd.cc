@@ -14,6 +14,7 @@
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/regular_file.h"
 #include "sdoslam/core/text_file.h"
+#include "sdoslam/core/yaml_file.h"
 #include "sdoslam/io/png_reader.h"
 
 namespace sdoslam {
@@ -21,12 +22,7 @@ namespace {
 
 YAML::Node LoadYaml(const std::filesystem::path& path) {
   if (!std::filesystem::exists(path)) throw Error(path.string() + " does not exist");
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(path.string());
-  } catch (const YAML::Exception& e) {
-    throw Error(path.string() + ": " + e.what());
-  }
+  const YAML::Node root = LoadYamlFile(path);
   if (!root.IsMap()) throw Error(path.string() + ": expected a YAML map of named entries");
   return root;
 }
