@@ -300,7 +300,13 @@ TEST_F(CliRun, ImpossibleIntrinsicsAndUnknownKeysAreNamed) {
   testing::WriteText(dir_ / "bad.yaml", "camera:\n  fx: -500\n  fy: 500\n  cx: 320\n  cy: 240\n");
   std::string output = Run((dir_ / "bad.yaml").string(), (dir_ / "seq").string());
   EXPECT_EQ(last_.exit_code, 1);
-  EXPECT_NE(output.find("camera.fx: focal length must be positive"), std::string::npos) << output;
+  EXPECT_NE(output.find("camera.fx: focal length must be within"), std::string::npos) << output;
+  // Finite but no camera: this ran, exited 0 and wrote a trajectory that meant nothing.
+  testing::WriteText(dir_ / "huge.yaml", "camera:\n  fx: 1e308\n  fy: 500\n  cx: 320\n  cy: 240\n");
+  output = Run((dir_ / "huge.yaml").string(), (dir_ / "seq").string());
+  EXPECT_EQ(last_.exit_code, 1) << output;
+  EXPECT_NE(output.find("huge.yaml: camera.fx: focal length must be within"), std::string::npos)
+      << output;
   testing::WriteText(dir_ / "typo.yaml",
                      testing::ReadText(dir_ / "seq" / "camera.yaml") + "orb:\n  nfeatures: 5\n");
   output = Run((dir_ / "typo.yaml").string(), (dir_ / "seq").string());
