@@ -1,4 +1,5 @@
 // Runs the real `sdoslam` executable as a user would and checks exit codes, messages and files.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 
@@ -662,6 +663,27 @@ TEST(CliFiles, WhatIsNoRegularFileFailsAtOnce) {
       EXPECT_EQ(r.exit_code, 1) << command << "\n" << r.output;
       EXPECT_EQ(r.output, "error: " + path + ": not a regular file\n") << command;
     }
+  }
+}
+
+// `eval --delta 1e20 --delta-unit frames` reported RTE 0.0000 over 9 pairs (the delta overflowed
+// to 0), exit 0. A delta longer than the trajectory gives no RTE (n/a, as for any trajectory too
+// short for its delta) and a note naming --delta; the ATE stands.
+TEST(CliEvalErrors, ADeltaLongerThanTheTrajectoryGivesNoRteAndSaysWhy) {
+  testing::TempDir dir;
+  std::string poses;
+  for (int k = 0; k < 10; ++k) poses += fmt::format("{}.0 {} 0 0 0 0 0 1\n", 100 + k, k);
+  testing::WriteText(dir / "gt.txt", poses);
+  const std::string gt = (dir / "gt.txt").string();
+  for (const std::string delta : {"1e+20", "20"}) {
+    const Result r = RunSdoslam("eval --no-plots --delta " + delta + " --delta-unit frames --gt " +
+                                gt + " --est " + gt);
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("n/a        n/a      0\n"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("note: gt: no RTE: RTE delta (--delta) " + delta +
+                            " frames: no pose pairs that far apart; the trajectory has 10 poses"),
+              std::string::npos)
+        << r.output;
   }
 }
 
