@@ -1,5 +1,7 @@
 #include "sdoslam/core/text_file.h"
 
+#include <fmt/format.h>
+
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -7,6 +9,7 @@
 
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/regular_file.h"
+#include "sdoslam/core/timestamps.h"
 
 namespace sdoslam {
 
@@ -40,6 +43,18 @@ double ParseDouble(const std::string& token, const std::filesystem::path& path, 
   }
   if (!std::isfinite(value)) {
     throw Error(Where(path, line_number) + what + " is " + token + " (must be finite)");
+  }
+  return value;
+}
+
+double ParseTimestamp(const std::string& token, const std::filesystem::path& path, int line_number,
+                      const std::string& what) {
+  const double value = ParseDouble(token, path, line_number, what);
+  if (std::abs(value) > kMaxAbsTimestamp) {
+    throw Error(
+        fmt::format("{}{} {} is not a time in seconds (beyond +-{:g} s, the year 2286; "
+                    "nanoseconds?)",
+                    Where(path, line_number), what, token, kMaxAbsTimestamp));
   }
   return value;
 }

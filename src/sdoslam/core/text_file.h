@@ -20,6 +20,11 @@ void ForEachDataLine(
 double ParseDouble(const std::string& token, const std::filesystem::path& path, int line_number,
                    const std::string& what);
 
+// Parses a timestamp in seconds: ParseDouble, and within +-kMaxAbsTimestamp (timestamps.h);
+// throws Error("<file>:<line>: <what> ...") otherwise.
+double ParseTimestamp(const std::string& token, const std::filesystem::path& path, int line_number,
+                      const std::string& what);
+
 // "<file>:<line>: " prefix for messages.
 std::string Where(const std::filesystem::path& path, int line_number);
 

@@ -26,7 +26,7 @@ std::vector<ListEntry> ReadFileList(const std::filesystem::path& path) {
       throw Error(Where(path, line) + "expected 'timestamp filename', found " +
                   std::to_string(tokens.size()) + " columns");
     }
-    const double t = ParseDouble(tokens[0], path, line, "timestamp");
+    const double t = ParseTimestamp(tokens[0], path, line, "timestamp");
     if (!list.empty() && t <= list.back().timestamp) {
       throw Error(Where(path, line) + "timestamp " + tokens[0] +
                   " does not increase over the line before");
@@ -69,8 +69,8 @@ TumDataset::TumDataset(const std::filesystem::path& folder, const CameraOptions&
                     std::to_string(tokens.size()) + " columns");
       }
       RgbdFrameEntry entry;
-      entry.timestamp = ParseDouble(tokens[0], path, line, "rgb timestamp");
-      entry.depth_timestamp = ParseDouble(tokens[2], path, line, "depth timestamp");
+      entry.timestamp = ParseTimestamp(tokens[0], path, line, "rgb timestamp");
+      entry.depth_timestamp = ParseTimestamp(tokens[2], path, line, "depth timestamp");
       entry.rgb_path = folder / tokens[1];
       entry.depth_path = folder / tokens[3];
       if (!entries_.empty() && entry.timestamp <= entries_.back().timestamp) {
