@@ -6,6 +6,7 @@
 #include <sys/stat.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <fstream>
@@ -21,6 +22,7 @@
 #include "sdoslam/eval/metrics.h"
 #include "sdoslam/io/omd.h"
 #include "sdoslam/io/point_cloud.h"
+#include "sdoslam/io/result_set.h"
 #include "sdoslam/synth/real_background.h"
 #include "sdoslam/synth/scenarios.h"
 #include "sdoslam/synth/sequence.h"
@@ -971,6 +973,28 @@ TEST(PipelineStages, AnInterruptedRunThatPreparesAheadStopsCleanly) {
   EXPECT_EQ(s.frames, 15u);
   EXPECT_EQ(seen, 15u);
   EXPECT_GE(s.trajectory.size(), 13u);
+}
+
+// The loop looked for a stop only before a frame: a signal during the last frame left the set
+// marked "complete", and `sdoslam run` exited 0 after printing "interrupted". A stop asked for
+// before the commit marks the set "interrupted" (the command then exits 130 or 143).
+TEST(PipelineStages, AStopDuringTheLastFrameMarksTheRunInterrupted) {
+  testing::TempDir dir;
+  const auto sequence = WriteShortWalk(dir, 5);
+  for (bool prepare_ahead : {false, true}) {
+    RunOptions run =
+        SyntheticRun(sequence, dir / fmt::format("out_{}", prepare_ahead), RunMode::kConventional);
+    run.prepare_ahead = prepare_ahead;
+    std::atomic<bool> stop{false};
+    run.after_frame = [&](const TrackingResult& r, const System&) {
+      if (r.index == 4) stop = true;  // the signal, arriving while the last frame is in hand
+    };
+    run.stop_requested = [&] { return stop.load(); };
+    const RunSummary s = RunOnDataset(run);
+    EXPECT_TRUE(s.interrupted) << "prepare_ahead " << prepare_ahead;
+    EXPECT_EQ(s.frames, 5u);
+    EXPECT_EQ(ReadResultManifest(run.out).status, "interrupted");
+  }
 }
 
 // An image replaced by a FIFO during a run blocked the reader for good. Each read checks that it
