@@ -580,6 +580,32 @@ TEST_F(CliRun, ExitCodesFollowTheReadmeTable) {
   EXPECT_EQ(ReadTumTrajectory(dir_ / "out" / "CameraTrajectory.txt").size(), 3u);
 }
 
+// An empty --out is a slip on the command line (an unset variable), a usage error (2) on every
+// command that writes a folder, not the I/O error (4) that creating "" gave.
+TEST_F(CliRun, AnEmptyOutputFolderIsAUsageError) {
+  const std::string seq = (dir_ / "seq").string();
+  const std::string config = (dir_ / "seq" / "camera.yaml").string();
+  for (const std::string& command :
+       {"run --dataset " + seq + " --config " + config + " --out ''",
+        std::string("synth --scenario static_room --frames 10 --out ''"),
+        "convert --dataset " + seq + " --to tum --out ''", std::string("demo --out ''"),
+        std::string("bench --work ''"), "vocab build --images " + seq + " --out ''"}) {
+    const Result r = RunSdoslam(command);
+    EXPECT_EQ(r.exit_code, 2) << command << "\n" << r.output;
+    EXPECT_NE(r.output.find(command.starts_with("bench") ? "--work: must not be empty"
+                                                         : "--out: must not be empty"),
+              std::string::npos)
+        << command << "\n"
+        << r.output;
+  }
+  // demo --out naming a file printed the file system's own error.
+  testing::WriteText(dir_ / "file", "x\n");
+  const Result r = RunSdoslam("demo --out " + (dir_ / "file").string());
+  EXPECT_EQ(r.exit_code, 4) << r.output;
+  EXPECT_EQ(r.output,
+            "error: " + (dir_ / "file").string() + ": --out names a file, not a folder\n");
+}
+
 // Ten levels of ten YAML aliases in a --config ran for more than 70 s before failing.
 TEST_F(CliRun, AnAliasBombConfigFailsAtOnce) {
   testing::WriteText(dir_ / "bomb.yaml", testing::YamlAliasBomb(10));
