@@ -1,7 +1,10 @@
 // Runs the real `sdoslam` executable as a user would and checks exit codes, messages and files.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <array>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -298,7 +301,13 @@ TEST_F(CliRun, ImpossibleIntrinsicsAndUnknownKeysAreNamed) {
   testing::WriteText(dir_ / "bad.yaml", "camera:\n  fx: -500\n  fy: 500\n  cx: 320\n  cy: 240\n");
   std::string output = Run((dir_ / "bad.yaml").string(), (dir_ / "seq").string());
   EXPECT_EQ(last_.exit_code, 1);
-  EXPECT_NE(output.find("camera.fx: focal length must be positive"), std::string::npos) << output;
+  EXPECT_NE(output.find("camera.fx: focal length must be within"), std::string::npos) << output;
+  // Finite but no camera: this ran, exited 0 and wrote a trajectory that meant nothing.
+  testing::WriteText(dir_ / "huge.yaml", "camera:\n  fx: 1e308\n  fy: 500\n  cx: 320\n  cy: 240\n");
+  output = Run((dir_ / "huge.yaml").string(), (dir_ / "seq").string());
+  EXPECT_EQ(last_.exit_code, 1) << output;
+  EXPECT_NE(output.find("huge.yaml: camera.fx: focal length must be within"), std::string::npos)
+      << output;
   testing::WriteText(dir_ / "typo.yaml",
                      testing::ReadText(dir_ / "seq" / "camera.yaml") + "orb:\n  nfeatures: 5\n");
   output = Run((dir_ / "typo.yaml").string(), (dir_ / "seq").string());
@@ -571,6 +580,45 @@ TEST_F(CliRun, ExitCodesFollowTheReadmeTable) {
   EXPECT_EQ(ReadTumTrajectory(dir_ / "out" / "CameraTrajectory.txt").size(), 3u);
 }
 
+// An empty --out is a slip on the command line (an unset variable), a usage error (2) on every
+// command that writes a folder, not the I/O error (4) that creating "" gave.
+TEST_F(CliRun, AnEmptyOutputFolderIsAUsageError) {
+  const std::string seq = (dir_ / "seq").string();
+  const std::string config = (dir_ / "seq" / "camera.yaml").string();
+  for (const std::string& command :
+       {"run --dataset " + seq + " --config " + config + " --out ''",
+        std::string("synth --scenario static_room --frames 10 --out ''"),
+        "convert --dataset " + seq + " --to tum --out ''", std::string("demo --out ''"),
+        std::string("bench --work ''"), "vocab build --images " + seq + " --out ''"}) {
+    const Result r = RunSdoslam(command);
+    EXPECT_EQ(r.exit_code, 2) << command << "\n" << r.output;
+    EXPECT_NE(r.output.find(command.starts_with("bench") ? "--work: must not be empty"
+                                                         : "--out: must not be empty"),
+              std::string::npos)
+        << command << "\n"
+        << r.output;
+  }
+  // demo --out naming a file printed the file system's own error.
+  testing::WriteText(dir_ / "file", "x\n");
+  const Result r = RunSdoslam("demo --out " + (dir_ / "file").string());
+  EXPECT_EQ(r.exit_code, 4) << r.output;
+  EXPECT_EQ(r.output,
+            "error: " + (dir_ / "file").string() + ": --out names a file, not a folder\n");
+}
+
+// Ten levels of ten YAML aliases in a --config ran for more than 70 s before failing.
+TEST_F(CliRun, AnAliasBombConfigFailsAtOnce) {
+  testing::WriteText(dir_ / "bomb.yaml", testing::YamlAliasBomb(10));
+  const auto start = std::chrono::steady_clock::now();
+  const std::string output = Run((dir_ / "bomb.yaml").string(), (dir_ / "seq").string());
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 2.0);
+  EXPECT_EQ(last_.exit_code, 1) << output;
+  EXPECT_NE(
+      output.find("error: " + (dir_ / "bomb.yaml").string() + ": more than 100000 YAML nodes"),
+      std::string::npos)
+      << output;
+}
+
 // A run's config.yaml alone repeats the run: dataset, frame range and threading are in it.
 TEST_F(CliRun, ARunsConfigYamlRerunsItBitIdentically) {
   const std::string first = (dir_ / "first").string(), second = (dir_ / "second").string();
@@ -616,6 +664,53 @@ TEST_F(CliRun, AFrontEndOptionInAModeWithoutFrontEndIsAWarning) {
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("--detector-model has no effect in mode conventional"), std::string::npos)
       << r.output;
+}
+
+// A FIFO, /dev/zero or a folder where a file is read: `vocab info /dev/zero` grew to 4 GB, a FIFO
+// hung every command. Each now fails at once, naming the path, exit code 1.
+TEST(CliFiles, WhatIsNoRegularFileFailsAtOnce) {
+  testing::TempDir dir;
+  const std::string fifo = (dir / "fifo").string();
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  testing::WriteText(dir / "gt.txt",
+                     "100.0 0 0 0 0 0 0 1\n100.1 1 0 0 0 0 0 1\n100.2 1 1 0 0 0 0 1\n");
+  const std::string gt = (dir / "gt.txt").string();
+  for (const std::string& path : {fifo, std::string("/dev/zero"), dir.path().string()}) {
+    for (const std::string& command :
+         {"vocab info " + path, "eval --no-plots --gt " + path + " --est " + gt,
+          "eval --no-plots --gt " + gt + " --est " + path,
+          "run --dataset " + dir.path().string() + " --config " + path + " --out " +
+              (dir / "out").string()}) {
+      const auto start = std::chrono::steady_clock::now();
+      const Result r = RunSdoslam(command);
+      EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
+                2.0)
+          << command;
+      EXPECT_EQ(r.exit_code, 1) << command << "\n" << r.output;
+      EXPECT_EQ(r.output, "error: " + path + ": not a regular file\n") << command;
+    }
+  }
+}
+
+// `eval --delta 1e20 --delta-unit frames` reported RTE 0.0000 over 9 pairs (the delta overflowed
+// to 0), exit 0. A delta longer than the trajectory gives no RTE (n/a, as for any trajectory too
+// short for its delta) and a note naming --delta; the ATE stands.
+TEST(CliEvalErrors, ADeltaLongerThanTheTrajectoryGivesNoRteAndSaysWhy) {
+  testing::TempDir dir;
+  std::string poses;
+  for (int k = 0; k < 10; ++k) poses += fmt::format("{}.0 {} 0 0 0 0 0 1\n", 100 + k, k);
+  testing::WriteText(dir / "gt.txt", poses);
+  const std::string gt = (dir / "gt.txt").string();
+  for (const std::string delta : {"1e+20", "20"}) {
+    const Result r = RunSdoslam("eval --no-plots --delta " + delta + " --delta-unit frames --gt " +
+                                gt + " --est " + gt);
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("n/a        n/a      0\n"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("note: gt: no RTE: RTE delta (--delta) " + delta +
+                            " frames: no pose pairs that far apart; the trajectory has 10 poses"),
+              std::string::npos)
+        << r.output;
+  }
 }
 
 TEST(CliVocab, BuildsAVocabularyFromImageFoldersAndNamesBadInput) {

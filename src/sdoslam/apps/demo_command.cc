@@ -7,6 +7,7 @@
 #include <memory>
 #include <system_error>
 
+#include "sdoslam/core/error.h"
 #include "sdoslam/eval/html_report.h"
 #include "sdoslam/eval/report.h"
 #include "sdoslam/io/dataset.h"
@@ -198,6 +199,10 @@ void RemoveEarlierThumbnails(const std::filesystem::path& folder) {
 // found by motion.
 void RunDemo(const DemoArgs& args) {
   const std::filesystem::path out = args.out;
+  // Said before anything is rendered, in the words a run's result set uses; the first write
+  // below would otherwise fail with the file system's "Not a directory" on a path inside it.
+  if (std::filesystem::exists(out) && !std::filesystem::is_directory(out))
+    throw IoError(out.string() + ": --out names a file, not a folder");
   std::cout << "sdoslam demo: synthetic sequence -> SLAM -> evaluation (nothing downloaded)\n\n";
   std::vector<EstimateEvaluation> evaluations;
   std::vector<DemoRun> runs;

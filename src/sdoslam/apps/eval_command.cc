@@ -9,6 +9,7 @@
 
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
+#include "sdoslam/core/regular_file.h"
 #include "sdoslam/eval/report.h"
 #include "sdoslam/io/result_set.h"
 
@@ -32,6 +33,7 @@ struct EvalArgs {
 };
 
 Trajectory ReadNonEmpty(const std::string& path) {
+  RejectNonRegularFile(path);  // before its manifest is consulted, which would hash it
   // A file of an sdoslam result set must match its manifest (not a half-replaced set).
   if (const auto manifest = VerifyResultFile(path); manifest && manifest->status != "complete") {
     std::cerr << fmt::format("note: {} is from an interrupted run ({} of {} frames)\n", path,

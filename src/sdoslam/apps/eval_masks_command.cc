@@ -3,16 +3,18 @@
 #include <fmt/format.h>
 
 #include <cstdio>
-#include <fstream>
 #include <iostream>
 #include <map>
 #include <memory>
 #include <opencv2/imgcodecs.hpp>
+#include <sstream>
 
 #include "sdoslam/core/camera.h"
 #include "sdoslam/core/error.h"
+#include "sdoslam/core/regular_file.h"
 #include "sdoslam/core/text_file.h"
 #include "sdoslam/eval/mask_metrics.h"
+#include "sdoslam/io/png_reader.h"
 #include "sdoslam/io/result_set.h"
 #include "sdoslam/io/tum_dataset.h"
 
@@ -28,8 +30,9 @@ struct EvalMasksArgs {
 std::map<size_t, std::pair<std::vector<cv::Point2f>, std::vector<uint8_t>>> ReadFeatures(
     const std::filesystem::path& path) {
   std::map<size_t, std::pair<std::vector<cv::Point2f>, std::vector<uint8_t>>> by_frame;
-  std::ifstream in(path);
-  if (!in) throw Error(path.string() + ": cannot open");
+  const std::optional<std::string> text = ReadRegularFileIfExists(path);
+  if (!text) throw Error(path.string() + ": cannot open");
+  std::istringstream in(*text);
   std::string line;
   size_t number = 0;
   while (std::getline(in, line)) {
@@ -51,8 +54,9 @@ void EvalMasks(const EvalMasksArgs& args) {
   // Frames in the dataset's order, to map a run's frame index to its file.
   std::vector<std::filesystem::path> rgb;
   {
-    std::ifstream in(dataset / "rgb.txt");
-    if (!in) throw Error((dataset / "rgb.txt").string() + ": cannot open");
+    const std::optional<std::string> text = ReadRegularFileIfExists(dataset / "rgb.txt");
+    if (!text) throw Error((dataset / "rgb.txt").string() + ": cannot open");
+    std::istringstream in(*text);
     std::string line;
     while (std::getline(in, line)) {
       if (line.empty() || line[0] == '#') continue;
@@ -76,7 +80,7 @@ void EvalMasks(const EvalMasksArgs& args) {
     for (size_t i = 0; i < rgb.size(); ++i) {
       const auto mask_path = run / "masks" / rgb[i].filename();
       if (!std::filesystem::exists(mask_path)) continue;  // the run stopped earlier
-      const cv::Mat mask = cv::imread(mask_path.string(), cv::IMREAD_GRAYSCALE);
+      const cv::Mat mask = ReadImage(mask_path, cv::IMREAD_GRAYSCALE);
       if (mask.empty()) throw Error(mask_path.string() + ": cannot read");
       const auto it = features.find(i);
       if (it == features.end()) {

@@ -19,6 +19,26 @@
 #include "sdoslam/core/logging.h"
 #include "sdoslam/core/memory.h"
 
+namespace {
+
+// An empty output path is a slip on the command line (--out "$UNSET"), not a folder that cannot
+// be written: a usage error (exit 2) instead of the I/O error (4) that creating "" gave.
+const CLI::Validator kNotEmpty(
+    [](std::string& value) { return value.empty() ? std::string("must not be empty") : ""; }, "",
+    "NOT_EMPTY");
+
+// Every command's output option (--out; bench's --work), in subcommands of subcommands too.
+void RefuseEmptyOutputs(CLI::App& app) {
+  for (CLI::App* command : app.get_subcommands([](CLI::App*) { return true; })) {
+    for (const char* name : {"--out", "--work"}) {
+      if (CLI::Option* option = command->get_option_no_throw(name)) option->check(kNotEmpty);
+    }
+    RefuseEmptyOutputs(*command);
+  }
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
   sdoslam::KeepImageBuffersForReuse();  // before the first image: see memory.h
   CLI::App app{"sdoslam: visual SLAM for scenes that move (RGB-D, known and unknown objects)"};
@@ -35,6 +55,7 @@ int main(int argc, char** argv) {
   sdoslam::AddEvalMasksCommand(app);
   sdoslam::AddConvertCommand(app);
   sdoslam::AddVocabCommand(app);
+  RefuseEmptyOutputs(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::Success& e) {

@@ -131,7 +131,7 @@ TEST_F(Interrupts, TwentyRandomInterruptsLeaveTheOldSetOrTheNewNeverAMix) {
     EXPECT_EQ(m.status, "interrupted");
     ++interrupted_sets;
     const size_t processed = m.info.at("frames_processed").get<size_t>();
-    EXPECT_LT(processed, 150u);
+    EXPECT_LE(processed, 150u);  // all of them when the signal came during the last frame
     // The partial trajectory is a valid TUM file with a pose per tracked frame.
     const Trajectory partial = ReadTumTrajectory(out / "CameraTrajectory.txt");
     EXPECT_EQ(partial.size(), m.info.at("frames_tracked").get<size_t>());

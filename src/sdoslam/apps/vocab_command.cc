@@ -16,6 +16,7 @@
 
 #include "sdoslam/core/error.h"
 #include "sdoslam/features/orb_extractor.h"
+#include "sdoslam/io/png_reader.h"
 #include "sdoslam/place/default_vocabulary.h"
 #include "sdoslam/place/vocabulary.h"
 
@@ -77,11 +78,17 @@ void Build(const VocabArgs& args) {
   // ORB exactly as runs extract it: default options, on the grey image of the colour image.
   const OrbExtractor orb(OrbOptions{});
   std::vector<cv::Mat> descriptors(images.size());
-  std::vector<std::string> unreadable(images.size());
+  std::vector<std::string> unreadable(images.size());  // the message, per image
   tbb::parallel_for(size_t{0}, images.size(), [&](size_t i) {
-    const cv::Mat bgr = cv::imread(images[i].string(), cv::IMREAD_COLOR);
+    cv::Mat bgr;
+    try {
+      bgr = ReadImage(images[i], cv::IMREAD_COLOR);
+    } catch (const Error& e) {  // not a regular file: said once the workers are done
+      unreadable[i] = e.what();
+      return;
+    }
     if (bgr.empty()) {
-      unreadable[i] = images[i].string();
+      unreadable[i] = "cannot read image " + images[i].string();
       return;
     }
     cv::Mat gray;
@@ -89,8 +96,8 @@ void Build(const VocabArgs& args) {
     std::vector<cv::KeyPoint> keypoints;
     orb.Extract(gray, &keypoints, &descriptors[i]);
   });
-  for (const std::string& file : unreadable) {
-    if (!file.empty()) throw Error("cannot read image " + file);
+  for (const std::string& message : unreadable) {
+    if (!message.empty()) throw Error(message);
   }
   size_t total = 0;
   for (const cv::Mat& d : descriptors) total += static_cast<size_t>(d.rows);

@@ -19,18 +19,33 @@ void Require(bool ok, const std::string& field, const std::string& why) {
 }  // namespace
 
 void CameraOptions::Check() const {
-  Require(std::isfinite(fps) && fps > 0, "fps", "must be positive");
-  Require(std::isfinite(depth_factor) && depth_factor > 0, "depth_factor", "must be positive");
-  Require(std::isfinite(depth_min) && depth_min >= 0, "depth_min", "must be >= 0");
-  Require(std::isfinite(depth_max) && depth_max > depth_min, "depth_max",
-          "must be larger than depth_min");
+  auto within = [](double value, double low, double high) {
+    return std::isfinite(value) && value >= low && value <= high;
+  };
+  Require(
+      within(fps, kMinFps, kMaxFps), "fps",
+      fmt::format("must be within {:g}..{:g} frames a second, got {:g}", kMinFps, kMaxFps, fps));
+  Require(within(depth_factor, kMinDepthFactor, kMaxDepthFactor), "depth_factor",
+          fmt::format("must be within {:g}..{:g} raw depth units a metre, got {:g}",
+                      kMinDepthFactor, kMaxDepthFactor, depth_factor));
+  Require(within(depth_min, 0, kMaxDepth), "depth_min",
+          fmt::format("must be within 0..{:g} m, got {:g}", kMaxDepth, depth_min));
+  Require(within(depth_max, 0, kMaxDepth) && depth_max > depth_min, "depth_max",
+          fmt::format("must be larger than depth_min ({:g}) and at most {:g} m, got {:g}",
+                      depth_min, kMaxDepth, depth_max));
   if (from_dataset) return;
   Require(width > 0 && width <= 16384, "width",
           "must be in 1..16384, got " + std::to_string(width));
   Require(height > 0 && height <= 16384, "height",
           "must be in 1..16384, got " + std::to_string(height));
-  Require(std::isfinite(fx) && fx > 0, "fx", "focal length must be positive");
-  Require(std::isfinite(fy) && fy > 0, "fy", "focal length must be positive");
+  for (const auto& [name, focal, size, side] :
+       {std::tuple{"fx", fx, width, "width"}, {"fy", fy, height, "height"}}) {
+    const double low = kMinFocalPerPixel * size, high = kMaxFocalPerPixel * size;
+    Require(within(focal, low, high), name,
+            fmt::format("focal length must be within {:g}..{:g} pixels ({:g} to {:g} times the "
+                        "image {}: a field of view of 169 to 0.6 degrees), got {:g}",
+                        low, high, kMinFocalPerPixel, kMaxFocalPerPixel, side, focal));
+  }
   Require(std::isfinite(cx) && cx >= 0 && cx <= width, "cx",
           "principal point must lie in the image");
   Require(std::isfinite(cy) && cy >= 0 && cy <= height, "cy",

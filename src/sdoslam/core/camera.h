@@ -20,6 +20,16 @@ namespace sdoslam {
 inline constexpr double kMaxRadialK12 = 10;  // |k1|, |k2|
 inline constexpr double kMaxRadialK3 = 100;  // |k3|
 inline constexpr double kMaxTangential = 1;  // |p1|, |p2|
+// ... and on the other numbers: finite is not enough (fx: 1e308 ran and wrote a trajectory that
+// meant nothing). A focal length of 0.05 to 100 image widths (heights) is a field of view of 169
+// to 0.6 degrees; a pinhole model covers no more, and no lens is narrower.
+inline constexpr double kMinFocalPerPixel = 0.05;
+inline constexpr double kMaxFocalPerPixel = 100;
+inline constexpr double kMinFps = 0.01;  // one frame in 100 s (1/fps paces --camera-rate)
+inline constexpr double kMaxFps = 1000;
+inline constexpr double kMinDepthFactor = 1;  // raw units per metre: 1 m .. 10 um a unit
+inline constexpr double kMaxDepthFactor = 1e5;
+inline constexpr double kMaxDepth = 1000;  // metres, depth_min and depth_max
 
 struct CameraOptions {
   std::string name = "camera";

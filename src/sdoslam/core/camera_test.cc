@@ -3,6 +3,12 @@
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
+#include <cmath>
+#include <functional>
+#include <string>
+#include <utility>
+#include <vector>
+
 #include "sdoslam/testing/test_util.h"
 
 namespace sdoslam {
@@ -99,6 +105,50 @@ TEST(Camera, CheckRejectsImpossibleIntrinsics) {
   expect_error(o, "cy");
 }
 
+// Finite but no camera: fx: 1e308 ran, exited 0 and wrote a trajectory that meant nothing. Every
+// number has a range, and the message names its key; the values at the edges of each range pass.
+TEST(Camera, CheckRejectsFiniteButAbsurdValues) {
+  auto error_of = [](CameraOptions o) { return testing::MessageOf([&] { o.Check(); }); };
+  const std::vector<std::pair<std::string, std::function<void(CameraOptions&)>>> absurd = {
+      {"fx", [](CameraOptions& o) { o.fx = 1e308; }},
+      {"fx", [](CameraOptions& o) { o.fx = 1e-300; }},
+      {"fx", [](CameraOptions& o) { o.fx = 100 * 640 + 1; }},  // a field of view under 0.6 deg
+      {"fy", [](CameraOptions& o) { o.fy = 1e308; }},
+      {"fy", [](CameraOptions& o) { o.fy = 0.05 * 480 - 1; }},  // over 169 degrees
+      {"fps", [](CameraOptions& o) { o.fps = 1e308; }},
+      {"fps", [](CameraOptions& o) { o.fps = 1e-300; }},  // 1/fps paces --camera-rate
+      {"depth_factor", [](CameraOptions& o) { o.depth_factor = 1e308; }},
+      {"depth_factor", [](CameraOptions& o) { o.depth_factor = 1e-300; }},
+      {"depth_min", [](CameraOptions& o) { o.depth_min = 1e308; }},
+      {"depth_max", [](CameraOptions& o) { o.depth_max = 1e308; }},
+      {"depth_max", [](CameraOptions& o) { o.depth_max = std::nan(""); }},
+      {"cx", [](CameraOptions& o) { o.cx = 1e308; }},
+      {"width", [](CameraOptions& o) { o.width = 1 << 30; }},
+  };
+  for (const auto& [key, change] : absurd) {
+    CameraOptions o = Freiburg2();
+    change(o);
+    EXPECT_EQ(error_of(o).find("camera." + key + ": "), 0u) << key << ": " << error_of(o);
+  }
+  // The depth settings are checked also while the intrinsics are still to come from a dataset.
+  CameraOptions from_dataset;
+  from_dataset.from_dataset = true;
+  from_dataset.depth_factor = 1e308;
+  EXPECT_EQ(error_of(from_dataset).find("camera.depth_factor: "), 0u) << error_of(from_dataset);
+  // The edges of each range.
+  CameraOptions edges = Freiburg2();
+  edges.fx = 0.05 * 640;
+  edges.fy = 100 * 480;
+  edges.fps = kMaxFps;
+  edges.depth_factor = kMinDepthFactor;
+  edges.depth_min = 0;
+  edges.depth_max = kMaxDepth;
+  EXPECT_EQ(error_of(edges), "(no error)");
+  edges.fps = kMinFps;
+  edges.depth_factor = kMaxDepthFactor;
+  EXPECT_EQ(error_of(edges), "(no error)");
+}
+
 TEST(CameraConfig, ShippedTumConfigsLoadWithPublishedValues) {
   const auto dir = testing::SourceDir() / "configs";
   const CameraOptions fr1 = LoadCameraConfig(dir / "tum_fr1.yaml");
@@ -145,6 +195,12 @@ TEST(CameraConfig, BadConfigsAreRejectedWithTheKey) {
   EXPECT_NE(message("camera:\n  fy: 500\n  cx: 320\n  cy: 240\n").find("camera.fx is required"),
             std::string::npos);
   EXPECT_NE(message("camera:\n  fx: -5\n  fy: 500\n  cx: 320\n  cy: 240\n").find("camera.fx"),
+            std::string::npos);
+  // The message of a config names the file and the key, with the value.
+  const std::string huge = message("camera:\n  fx: 1e308\n  fy: 500\n  cx: 320\n  cy: 240\n");
+  EXPECT_EQ(huge.find((dir / "c.yaml").string() + ": camera.fx: "), 0u) << huge;
+  EXPECT_NE(huge.find("got 1e+308"), std::string::npos) << huge;
+  EXPECT_NE(message(ok + "  depth_factor: 1e308\n").find("camera.depth_factor: "),
             std::string::npos);
   EXPECT_NE(message("other: 1\n").find("unknown key 'other'"), std::string::npos);
   EXPECT_NE(message("{}\n").find("missing the 'camera:' section"), std::string::npos);

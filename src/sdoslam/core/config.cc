@@ -3,9 +3,9 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
-#include <fstream>
 #include <map>
-#include <sstream>
+
+#include "sdoslam/core/yaml_file.h"
 
 namespace sdoslam {
 namespace {
@@ -32,13 +32,7 @@ void RejectDuplicateKeys(const YAML::Node& node, const std::string& origin,
   }
 }
 
-YAML::Node ParseRoot(const std::string& text, const std::string& origin) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(text);
-  } catch (const YAML::ParserException& e) {
-    throw Error(origin + ":" + std::to_string(e.mark.line + 1) + ": invalid YAML: " + e.msg);
-  }
+YAML::Node CheckRoot(YAML::Node root, const std::string& origin) {
   if (root.IsNull()) root = YAML::Node(YAML::NodeType::Map);  // an empty file is allowed
   if (!root.IsMap()) throw Error(origin + ": expected a mapping of settings at the top level");
   RejectDuplicateKeys(root, origin, "");
@@ -48,17 +42,12 @@ YAML::Node ParseRoot(const std::string& text, const std::string& origin) {
 }  // namespace
 
 ConfigMap ConfigMap::LoadFile(const std::filesystem::path& path) {
-  if (!std::filesystem::is_regular_file(path))
-    throw Error("config file not found: " + path.string());
-  std::ifstream in(path);
-  if (!in) throw Error("cannot read config file " + path.string());
-  std::stringstream text;
-  text << in.rdbuf();
-  return ConfigMap(ParseRoot(text.str(), path.string()), path.string(), "");
+  if (!std::filesystem::exists(path)) throw Error("config file not found: " + path.string());
+  return ConfigMap(CheckRoot(LoadYamlFile(path), path.string()), path.string(), "");
 }
 
 ConfigMap ConfigMap::LoadString(const std::string& text, const std::string& origin) {
-  return ConfigMap(ParseRoot(text, origin), origin, "");
+  return ConfigMap(CheckRoot(ParseYaml(text, origin), origin), origin, "");
 }
 
 ConfigMap::ConfigMap(YAML::Node node, std::string origin, std::string prefix)

@@ -1,22 +1,23 @@
 #include "sdoslam/core/text_file.h"
 
+#include <fmt/format.h>
+
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
-#include <fstream>
 #include <sstream>
 
 #include "sdoslam/core/error.h"
+#include "sdoslam/core/regular_file.h"
+#include "sdoslam/core/timestamps.h"
 
 namespace sdoslam {
 
 void ForEachDataLine(const std::filesystem::path& path,
                      const std::function<void(int, const std::vector<std::string>&)>& on_line) {
-  std::ifstream in(path);
-  if (!in) {
-    throw Error(std::filesystem::exists(path) ? "cannot read file " + path.string()
-                                              : "file not found: " + path.string());
-  }
+  const std::optional<std::string> text = ReadRegularFileIfExists(path);
+  if (!text) throw Error("file not found: " + path.string());
+  std::istringstream in(*text);
   std::string line;
   std::vector<std::string> tokens;
   int line_number = 0;
@@ -42,6 +43,18 @@ double ParseDouble(const std::string& token, const std::filesystem::path& path, 
   }
   if (!std::isfinite(value)) {
     throw Error(Where(path, line_number) + what + " is " + token + " (must be finite)");
+  }
+  return value;
+}
+
+double ParseTimestamp(const std::string& token, const std::filesystem::path& path, int line_number,
+                      const std::string& what) {
+  const double value = ParseDouble(token, path, line_number, what);
+  if (std::abs(value) > kMaxAbsTimestamp) {
+    throw Error(
+        fmt::format("{}{} {} is not a time in seconds (beyond +-{:g} s, the year 2286; "
+                    "nanoseconds?)",
+                    Where(path, line_number), what, token, kMaxAbsTimestamp));
   }
   return value;
 }

@@ -1,6 +1,7 @@
 #include "sdoslam/core/text_file.h"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include "sdoslam/core/error.h"
 #include "sdoslam/testing/test_util.h"
@@ -42,6 +43,27 @@ TEST(TextFile, ParseDoubleRejectsGarbageAndNonFinite) {
   } catch (const Error& e) {
     EXPECT_EQ(std::string(e.what()), "traj.txt:7: tx 'oops' is not a number");
   }
+}
+
+TEST(TextFile, ParseTimestampRefusesWhatIsNoTimeInSeconds) {
+  EXPECT_DOUBLE_EQ(ParseTimestamp("1311868164.363181", "f", 1, "timestamp"), 1311868164.363181);
+  EXPECT_DOUBLE_EQ(ParseTimestamp("0", "f", 1, "timestamp"), 0.0);  // synthetic sequences
+  EXPECT_EQ(testing::MessageOf([] { ParseTimestamp("1e308", "rgb.txt", 9, "timestamp"); }),
+            "rgb.txt:9: timestamp 1e308 is not a time in seconds (beyond +-1e+10 s, the year "
+            "2286; nanoseconds?)");
+  EXPECT_THROW(ParseTimestamp("1311868164363181000", "f", 1, "timestamp"), Error);  // ns
+  EXPECT_THROW(ParseTimestamp("-2e10", "f", 1, "timestamp"), Error);
+  EXPECT_THROW(ParseTimestamp("inf", "f", 1, "timestamp"), Error);
+}
+
+// A list that is a FIFO blocked the reader; one that is a folder read as empty.
+TEST(TextFile, AListThatIsNoRegularFileIsRefused) {
+  testing::TempDir dir;
+  ASSERT_EQ(mkfifo((dir / "rgb.txt").c_str(), 0600), 0);
+  EXPECT_EQ(testing::MessageOf([&] { ForEachDataLine(dir / "rgb.txt", [](int, const auto&) {}); }),
+            (dir / "rgb.txt").string() + ": not a regular file");
+  EXPECT_EQ(testing::MessageOf([&] { ForEachDataLine(dir.path(), [](int, const auto&) {}); }),
+            dir.path().string() + ": not a regular file");
 }
 
 }  // namespace

@@ -9,6 +9,7 @@
 #include <opencv2/objdetect.hpp>
 
 #include "sdoslam/core/error.h"
+#include "sdoslam/core/regular_file.h"
 
 namespace sdoslam {
 
@@ -105,11 +106,11 @@ std::vector<Detection> HogDetector::Detect(const FrontEndFrame& frame) {
 }
 
 FileDetector::FileDetector(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  if (!in) throw Error(path.string() + ": cannot open the detections file");
+  const std::optional<std::string> text = ReadRegularFileIfExists(path);
+  if (!text) throw Error(path.string() + ": cannot open the detections file");
   nlohmann::json j;
   try {
-    j = nlohmann::json::parse(in);
+    j = nlohmann::json::parse(*text);
   } catch (const nlohmann::json::exception& e) {
     throw Error(path.string() + ": not valid JSON: " + e.what());
   }

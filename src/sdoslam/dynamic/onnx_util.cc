@@ -8,13 +8,15 @@
 #include <opencv2/imgproc.hpp>
 
 #include "sdoslam/core/error.h"
+#include "sdoslam/core/regular_file.h"
 
 namespace sdoslam {
 
 cv::dnn::Net LoadOnnxModel(const std::filesystem::path& path, const std::string& backend) {
   if (path.empty()) throw Error(backend + ": no model file given");
-  if (!std::filesystem::is_regular_file(path))
+  if (!std::filesystem::exists(path))
     throw Error(path.string() + ": model file for '" + backend + "' does not exist");
+  RejectNonRegularFile(path);  // OpenCV would block on a FIFO, or read /dev/zero without end
   cv::dnn::Net net;
   try {
     net = cv::dnn::readNetFromONNX(path.string());
@@ -144,9 +146,10 @@ bool ParseValueInfo(WireReader value_info, OnnxInput* input) {
 }  // namespace
 
 std::vector<OnnxInput> ReadOnnxInputs(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(path.string() + ": cannot open");
-  const std::string bytes((std::istreambuf_iterator<char>(in)), {});
+  // 2 GiB: protobuf's own limit on a message, so no ONNX model is larger.
+  const std::optional<std::string> file = ReadRegularFileIfExists(path, uint64_t{2} << 30);
+  if (!file) throw Error(path.string() + ": cannot open");
+  const std::string& bytes = *file;
   const auto not_onnx = [&] { return Error(path.string() + ": not an ONNX model (protobuf)"); };
   std::vector<OnnxInput> inputs;
   std::vector<std::string> initializers;

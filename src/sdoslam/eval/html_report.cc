@@ -11,6 +11,8 @@
 
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
+#include "sdoslam/core/regular_file.h"
+#include "sdoslam/io/png_reader.h"
 
 namespace sdoslam {
 namespace {
@@ -91,9 +93,9 @@ std::string CheckedUrl(const std::filesystem::path& path, const std::filesystem:
 }
 
 std::string ReadWholeFile(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error("cannot read " + path.string());
-  return std::string(std::istreambuf_iterator<char>(in), {});
+  std::optional<std::string> text = ReadRegularFileIfExists(path);
+  if (!text) throw Error("cannot read " + path.string());
+  return std::move(*text);
 }
 
 std::string RenderTable(const HtmlTable& table, const std::string& section) {
@@ -253,7 +255,7 @@ void WriteThumbnail(const std::filesystem::path& image, const std::filesystem::p
     throw Error("cannot write thumbnail " + thumbnail.string() + ": use a .jpg or .png name");
   }
   if (width < 1) throw Error(fmt::format("thumbnail width must be positive, not {}", width));
-  const cv::Mat full = cv::imread(image.string(), cv::IMREAD_COLOR);
+  const cv::Mat full = ReadImage(image, cv::IMREAD_COLOR);
   if (full.empty()) throw Error("cannot read image " + image.string());
   cv::Mat small = full;
   if (full.cols > width) {

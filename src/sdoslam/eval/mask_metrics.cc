@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "sdoslam/core/error.h"
+#include "sdoslam/core/regular_file.h"
 #include "sdoslam/io/png_reader.h"
 
 namespace sdoslam {
@@ -41,11 +42,11 @@ MaskEvaluator::MaskEvaluator(const std::filesystem::path& sequence) : sequence_(
                   ": no ground-truth masks (mask evaluation needs a synthetic sequence)");
   }
   const auto objects = sequence / "objects.json";
-  std::ifstream in(objects);
-  if (!in) throw Error(objects.string() + ": cannot open");
+  const std::optional<std::string> text = ReadRegularFileIfExists(objects);
+  if (!text) throw Error(objects.string() + ": cannot open");
   std::map<int, std::string> class_of_instance;
   try {
-    const nlohmann::json j = nlohmann::json::parse(in);
+    const nlohmann::json j = nlohmann::json::parse(*text);
     for (const auto& o : j.at("objects")) {
       const bool known = o.value("known", false) && o.at("class").is_string();
       class_of_instance[o.at("id").get<int>()] =

@@ -1,5 +1,7 @@
 #include "sdoslam/eval/metrics.h"
 
+#include <fmt/format.h>
+
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
 #include <algorithm>
@@ -198,7 +200,9 @@ std::vector<std::array<size_t, 4>> PairAsTum(const Trajectory& ground_truth,
   for (size_t i = 0; i < n; ++i) {
     size_t j = 0;
     if (options.unit == DeltaUnit::kFrames) {
-      j = std::min(i + static_cast<size_t>(options.delta), n - 1);
+      // Compared as doubles: converting a delta beyond size_t (1e20) is undefined, and gave 0.
+      j = options.delta >= static_cast<double>(n - 1 - i) ? n - 1
+                                                          : i + static_cast<size_t>(options.delta);
     } else {
       j = ClosestIndex(est_times, est_times[i] + options.delta);
     }
@@ -220,6 +224,7 @@ std::vector<std::pair<size_t, size_t>> StrictPairs(const TrajectoryMatch& match,
   auto est_pose = [&](size_t k) { return estimate[match.estimate_index[k]]; };
   std::vector<std::pair<size_t, size_t>> pairs;
   if (options.unit == DeltaUnit::kFrames) {
+    if (options.delta >= static_cast<double>(n)) return pairs;  // as PairAsTum: no size_t cast
     const size_t delta = static_cast<size_t>(options.delta);
     for (size_t i = 0; i + delta < n; ++i) pairs.emplace_back(i, i + delta);
   } else {
@@ -268,9 +273,11 @@ RteResult ComputeRte(const Trajectory& ground_truth, const Trajectory& estimate,
     }
   }
   if (pairs.empty()) {
-    throw Error("no pose pairs " + std::to_string(options.delta) +
-                (options.unit == DeltaUnit::kFrames ? " frames" : " s") +
-                " apart: the matched trajectory is too short for this delta");
+    throw Error(fmt::format(
+        "RTE delta (--delta) {:g} {}: no pose pairs that far apart; the trajectory has {} poses "
+        "over {:.3f} s, too short for this delta",
+        options.delta, options.unit == DeltaUnit::kFrames ? "frames" : "s", estimate.size(),
+        estimate.empty() ? 0.0 : estimate.back().timestamp - estimate.front().timestamp));
   }
 
   RteResult result;

@@ -355,5 +355,42 @@ TEST(Rte, BadOptionsAndTooShortRuns) {
   EXPECT_THROW(ParseAlignmentMode("affine"), Error);
 }
 
+// A delta in frames beyond size_t (1e20) was converted to an index as is (undefined; it gave 0):
+// RTE 0.0000 over pairs of a pose with itself, exit 0. A delta longer than the trajectory is an
+// error naming --delta, in both pairings, however long.
+TEST(Rte, ADeltaLongerThanTheTrajectoryIsAnErrorNamingIt) {
+  const Trajectory gt = WavyTrajectory(10);
+  for (RtePairing pairing : {RtePairing::kTum, RtePairing::kStrict}) {
+    for (double delta : {10.0, 1e6, 1e20, 1e300}) {
+      RteOptions options;
+      options.unit = DeltaUnit::kFrames;
+      options.pairing = pairing;
+      options.delta = delta;
+      std::string message = "(no error)";
+      try {
+        ComputeRte(gt, gt, options);
+      } catch (const Error& e) {
+        message = e.what();
+      }
+      EXPECT_EQ(message.find("RTE delta (--delta) "), 0u)
+          << ToString(pairing) << " " << delta << ": " << message;
+      EXPECT_NE(message.find("no pose pairs that far apart; the trajectory has 10 poses"),
+                std::string::npos)
+          << message;
+    }
+    RteOptions seconds;
+    seconds.pairing = pairing;
+    seconds.delta = 1e300;
+    EXPECT_THROW(ComputeRte(gt, gt, seconds), Error);
+    // The longest delta that fits still pairs: the strict pairing takes 0 -> 9, TUM's script
+    // never pairs with the last pose, so one less.
+    RteOptions longest;
+    longest.unit = DeltaUnit::kFrames;
+    longest.pairing = pairing;
+    longest.delta = pairing == RtePairing::kStrict ? 9 : 8;
+    EXPECT_EQ(ComputeRte(gt, gt, longest).translation.count, 1u) << ToString(pairing);
+  }
+}
+
 }  // namespace
 }  // namespace sdoslam

@@ -160,6 +160,13 @@ RgbdFrame LoadRgbdFrame(const RgbdFrameEntry& entry, size_t index, const CameraO
   for (const auto& path : {entry.rgb_path, entry.depth_path}) {
     if (const std::optional<PngHeader> header = TryReadPngHeader(path)) {
       check_size(cv::Size(header->width, header->height), path);
+      // Decoding as colour would quietly scale a 16-bit image (a depth image listed in rgb.txt)
+      // to 8 bits and track on it.
+      if (path == entry.rgb_path && header->bit_depth == 16) {
+        throw Error(path.string() +
+                    ": a 16-bit PNG; a colour frame must be an 8-bit colour image (is it a depth "
+                    "image?)");
+      }
     }
   }
   frame.bgr = ReadImage(entry.rgb_path, cv::IMREAD_COLOR);

@@ -86,7 +86,8 @@ void WriteTumCopy(const RgbdDataset& dataset, const std::filesystem::path& out,
                   bool overwrite = false);
 
 // Decodes one frame's images. Throws Error naming the file when an image does not decode, has
-// the wrong size for the camera, or a depth image is not 16-bit single-channel.
+// the wrong size for the camera, a colour PNG is 16-bit, or a depth image is not 16-bit
+// single-channel.
 RgbdFrame LoadRgbdFrame(const RgbdFrameEntry& entry, size_t index, const CameraOptions& camera);
 
 }  // namespace sdoslam

@@ -3,9 +3,10 @@
 #include <array>
 #include <cstdint>
 #include <cstring>
-#include <fstream>
+#include <string>
 
 #include "sdoslam/core/error.h"
+#include "sdoslam/core/regular_file.h"
 
 namespace sdoslam {
 
@@ -13,8 +14,9 @@ std::optional<PngHeader> TryReadPngHeader(const std::filesystem::path& path) {
   static constexpr std::array<unsigned char, 8> kSignature = {0x89, 'P',  'N',  'G',
                                                               '\r', '\n', 0x1a, '\n'};
   std::array<unsigned char, 26> head{};
-  std::ifstream in(path, std::ios::binary);
-  if (!in.read(reinterpret_cast<char*>(head.data()), head.size())) return std::nullopt;
+  const std::optional<std::string> bytes = ReadRegularFileHead(path, head.size());
+  if (!bytes || bytes->size() < head.size()) return std::nullopt;
+  std::memcpy(head.data(), bytes->data(), head.size());
   if (std::memcmp(head.data(), kSignature.data(), kSignature.size()) != 0) return std::nullopt;
   if (std::memcmp(head.data() + 12, "IHDR", 4) != 0) return std::nullopt;
   auto big_endian = [&](int offset) {
@@ -28,7 +30,7 @@ std::optional<PngHeader> TryReadPngHeader(const std::filesystem::path& path) {
 }
 
 PngHeader ReadPngHeader(const std::filesystem::path& path) {
-  if (!std::ifstream(path)) throw Error(path.string() + ": cannot open");
+  if (!ReadRegularFileHead(path, 0)) throw Error(path.string() + ": cannot open");
   const std::optional<PngHeader> header = TryReadPngHeader(path);
   if (!header) throw Error(path.string() + ": not a PNG file");
   return *header;

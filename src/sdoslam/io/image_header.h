@@ -14,9 +14,11 @@ struct PngHeader {
   int width = 0, height = 0, bit_depth = 0, colour_type = 0;
 };
 
-// Throws Error naming the file when it cannot be opened or is not a PNG.
+// Throws Error naming the file when it cannot be opened, is not a regular file (a FIFO would
+// block the read; core/regular_file.h) or is not a PNG.
 PngHeader ReadPngHeader(const std::filesystem::path& path);
-// nullopt when the file is not a PNG (other formats are checked after decoding).
+// nullopt when the file is missing or not a PNG (other formats are checked after decoding);
+// throws Error naming it when it exists but is not a regular file.
 std::optional<PngHeader> TryReadPngHeader(const std::filesystem::path& path);
 
 }  // namespace sdoslam

@@ -1,6 +1,7 @@
 #include "sdoslam/io/image_header.h"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -27,6 +28,15 @@ TEST(PngHeader, ReadsSizeAndDepthAndRejectsOtherFiles) {
   EXPECT_FALSE(TryReadPngHeader(dir / "z.jpg").has_value());
   EXPECT_FALSE(TryReadPngHeader(dir / "missing.png").has_value());
   EXPECT_THROW(ReadPngHeader(dir / "missing.png"), Error);
+}
+
+// The header was read before the image (to refuse a wrong size undecoded): a FIFO blocked it.
+TEST(PngHeader, AFileThatIsNoRegularFileIsNamed) {
+  testing::TempDir dir;
+  ASSERT_EQ(mkfifo((dir / "fifo.png").c_str(), 0600), 0);
+  const std::string expected = (dir / "fifo.png").string() + ": not a regular file";
+  EXPECT_EQ(testing::MessageOf([&] { TryReadPngHeader(dir / "fifo.png"); }), expected);
+  EXPECT_EQ(testing::MessageOf([&] { ReadPngHeader(dir / "fifo.png"); }), expected);
 }
 
 }  // namespace

@@ -12,7 +12,9 @@
 
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
+#include "sdoslam/core/regular_file.h"
 #include "sdoslam/core/text_file.h"
+#include "sdoslam/core/yaml_file.h"
 #include "sdoslam/io/output_folder.h"
 #include "sdoslam/io/png_reader.h"
 
@@ -21,12 +23,7 @@ namespace {
 
 YAML::Node LoadYaml(const std::filesystem::path& path) {
   if (!std::filesystem::exists(path)) throw Error(path.string() + " does not exist");
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(path.string());
-  } catch (const YAML::Exception& e) {
-    throw Error(path.string() + ": " + e.what());
-  }
+  const YAML::Node root = LoadYamlFile(path);
   if (!root.IsMap()) throw Error(path.string() + ": expected a YAML map of named entries");
   return root;
 }
@@ -94,8 +91,9 @@ bool ParseNumber(const std::string& s, double* value) {
 }
 
 std::vector<std::string> ReadTextLines(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  if (!in) throw Error(path.string() + ": cannot open");
+  const std::optional<std::string> text = ReadRegularFileIfExists(path);
+  if (!text) throw Error(path.string() + ": cannot open");
+  std::istringstream in(*text);
   std::vector<std::string> lines;
   for (std::string line; std::getline(in, line);) lines.push_back(line);
   return lines;

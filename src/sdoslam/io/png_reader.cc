@@ -5,11 +5,12 @@
 #include <array>
 #include <cstdlib>
 #include <cstring>
-#include <fstream>
 #include <memory>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <vector>
+
+#include "sdoslam/core/regular_file.h"
 
 namespace sdoslam {
 namespace {
@@ -185,20 +186,21 @@ std::optional<cv::Mat> DecodePng(std::span<const uint8_t> bytes) {
 }
 
 cv::Mat ReadImage(const std::filesystem::path& path, int imread_flags) {
-  std::ifstream in(path, std::ios::binary | std::ios::ate);
-  if (!in) return {};
-  const std::streamoff size = in.tellg();
-  if (size <= 0) return {};
-  std::vector<uint8_t> bytes(static_cast<size_t>(size));
-  in.seekg(0);
-  if (!in.read(reinterpret_cast<char*>(bytes.data()), size)) return {};
+  // Checked at every read, not once at the start: an image replaced by a FIFO during a run
+  // fails with its name instead of blocking the reader.
+  const std::optional<std::string> file = ReadRegularFileIfExists(path);
+  if (!file || file->empty()) return {};
+  const std::span<const uint8_t> bytes(reinterpret_cast<const uint8_t*>(file->data()),
+                                       file->size());
   if (std::optional<cv::Mat> image = DecodePng(bytes)) {
     const bool as_is = imread_flags == cv::IMREAD_UNCHANGED ||
                        (imread_flags == cv::IMREAD_COLOR && image->type() == CV_8UC3) ||
                        (imread_flags == cv::IMREAD_GRAYSCALE && image->type() == CV_8UC1);
     if (as_is) return *image;
   }
-  return cv::imdecode(bytes, imread_flags);
+  return cv::imdecode(
+      cv::Mat(1, static_cast<int>(bytes.size()), CV_8U, const_cast<uint8_t*>(bytes.data())),
+      imread_flags);
 }
 
 }  // namespace sdoslam

@@ -21,8 +21,9 @@ namespace sdoslam {
 std::optional<cv::Mat> DecodePng(std::span<const uint8_t> bytes);
 
 // cv::imread(path, flags) for IMREAD_UNCHANGED, IMREAD_COLOR and IMREAD_GRAYSCALE, decoding the
-// layouts above with DecodePng and everything else with OpenCV. Empty when the file cannot be
-// read or decoded, as cv::imread.
+// layouts above with DecodePng and everything else with OpenCV. Empty when the file does not
+// exist or cannot be decoded, as cv::imread; throws Error naming it when it exists but is not a
+// regular file, is larger than kMaxInputFileBytes or cannot be read (core/regular_file.h).
 cv::Mat ReadImage(const std::filesystem::path& path, int imread_flags);
 
 }  // namespace sdoslam

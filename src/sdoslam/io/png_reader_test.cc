@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 #include <libdeflate.h>
+#include <sys/stat.h>
 
 #include <cstdlib>
 #include <cstring>
@@ -160,6 +161,18 @@ TEST(ReadImage, GivesWhatImreadGivesForEveryFlag) {
   EXPECT_TRUE(ReadImage(dir / "missing.png", cv::IMREAD_COLOR).empty());
   testing::WriteText(dir / "broken.png", "not an image");
   EXPECT_TRUE(ReadImage(dir / "broken.png", cv::IMREAD_COLOR).empty());
+}
+
+// An image that is a FIFO blocked the reader until something wrote to it (a run hung); a folder
+// or a device is no image either. Each is named at once, at every read.
+TEST(ReadImage, AnImageThatIsNoRegularFileIsNamed) {
+  testing::TempDir dir;
+  ASSERT_EQ(mkfifo((dir / "fifo.png").c_str(), 0600), 0);
+  for (const std::filesystem::path& path :
+       {dir / "fifo.png", dir.path(), std::filesystem::path("/dev/zero")}) {
+    EXPECT_EQ(testing::MessageOf([&] { ReadImage(path, cv::IMREAD_COLOR); }),
+              path.string() + ": not a regular file");
+  }
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "sdoslam/core/error.h"
+#include "sdoslam/core/regular_file.h"
 
 namespace sdoslam {
 
@@ -83,6 +84,7 @@ double ReadBinaryScalar(const char* bytes, const Property& p) {
 }  // namespace
 
 std::vector<ColoredPoint> ReadPly(const std::filesystem::path& path) {
+  RejectNonRegularFile(path);  // before the open: a FIFO would block it
   std::ifstream in(path, std::ios::binary);
   if (!in) throw Error(path.string() + ": cannot open");
   const auto fail = [&](int line, const std::string& what) -> Error {

@@ -40,7 +40,8 @@ Trajectory ReadTumTrajectory(const std::filesystem::path& path,
     }
     static const char* kNames[] = {"timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw"};
     double v[8];
-    for (int k = 0; k < 8; ++k) v[k] = ParseDouble(tokens[k], path, line, kNames[k]);
+    v[0] = ParseTimestamp(tokens[0], path, line, kNames[0]);
+    for (int k = 1; k < 8; ++k) v[k] = ParseDouble(tokens[k], path, line, kNames[k]);
     for (int k = 1; k <= 3; ++k) {
       if (std::abs(v[k]) > options.max_abs_position) {
         throw Error(Where(path, line) + kNames[k] + " is " + tokens[k] + " m (more than " +

@@ -27,8 +27,7 @@ struct TrajectoryReadOptions {
 
 // Reads a TUM trajectory (`timestamp tx ty tz qx qy qz qw`, '#' comments). Throws Error naming
 // file and line for a wrong column count, a non-number or NaN, an absurd position, a bad
-// quaternion, or timestamps
-// that do not increase.
+// quaternion, or timestamps that are absurd (ParseTimestamp) or do not increase.
 Trajectory ReadTumTrajectory(const std::filesystem::path& path,
                              const TrajectoryReadOptions& options = {});
 

@@ -1,6 +1,7 @@
 #include "sdoslam/io/trajectory.h"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include "sdoslam/core/error.h"
 #include "sdoslam/testing/test_util.h"
@@ -67,6 +68,18 @@ TEST(Trajectory, BadRowsAreRejectedWithFileAndLine) {
   testing::WriteText(path, "1.0 0 0 0 0 0 0 1\n1.0 0 0 0 0 0 0 1\n");
   EXPECT_NE(ErrorOf(path).find(":2: timestamp 1.0 does not increase"), std::string::npos);
   EXPECT_EQ(ErrorOf(dir / "missing.txt"), "file not found: " + (dir / "missing.txt").string());
+  // A timestamp beyond any time in seconds (1e308 was read as such; nanoseconds would be too).
+  testing::WriteText(path, "1.0 0 0 0 0 0 0 1\n1e308 0 0 0 0 0 0 1\n");
+  EXPECT_NE(ErrorOf(path).find(path.string() + ":2: timestamp 1e308 is not a time in seconds"),
+            std::string::npos)
+      << ErrorOf(path);
+  testing::WriteText(path, "1311868164000000000 0 0 0 0 0 0 1\n");
+  EXPECT_NE(ErrorOf(path).find(":1: timestamp 1311868164000000000 is not a time in seconds"),
+            std::string::npos);
+  // A ground truth that is a FIFO blocked `eval`; a folder is no trajectory either.
+  ASSERT_EQ(mkfifo((dir / "fifo.txt").c_str(), 0600), 0);
+  EXPECT_EQ(ErrorOf(dir / "fifo.txt"), (dir / "fifo.txt").string() + ": not a regular file");
+  EXPECT_EQ(ErrorOf(dir.path()), dir.path().string() + ": not a regular file");
 }
 
 TEST(Trajectory, KittiIsRowMajorThreeByFour) {

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "sdoslam/core/error.h"
+#include "sdoslam/core/regular_file.h"
 #include "sdoslam/core/text_file.h"
 #include "sdoslam/core/timestamps.h"
 #include "sdoslam/io/dataset.h"
@@ -25,7 +26,7 @@ std::vector<ListEntry> ReadFileList(const std::filesystem::path& path) {
       throw Error(Where(path, line) + "expected 'timestamp filename', found " +
                   std::to_string(tokens.size()) + " columns");
     }
-    const double t = ParseDouble(tokens[0], path, line, "timestamp");
+    const double t = ParseTimestamp(tokens[0], path, line, "timestamp");
     if (!list.empty() && t <= list.back().timestamp) {
       throw Error(Where(path, line) + "timestamp " + tokens[0] +
                   " does not increase over the line before");
@@ -68,8 +69,8 @@ TumDataset::TumDataset(const std::filesystem::path& folder, const CameraOptions&
                     std::to_string(tokens.size()) + " columns");
       }
       RgbdFrameEntry entry;
-      entry.timestamp = ParseDouble(tokens[0], path, line, "rgb timestamp");
-      entry.depth_timestamp = ParseDouble(tokens[2], path, line, "depth timestamp");
+      entry.timestamp = ParseTimestamp(tokens[0], path, line, "rgb timestamp");
+      entry.depth_timestamp = ParseTimestamp(tokens[2], path, line, "depth timestamp");
       entry.rgb_path = folder / tokens[1];
       entry.depth_path = folder / tokens[3];
       if (!entries_.empty() && entry.timestamp <= entries_.back().timestamp) {
@@ -101,9 +102,8 @@ TumDataset::TumDataset(const std::filesystem::path& folder, const CameraOptions&
 
   for (const RgbdFrameEntry& entry : entries_) {
     for (const auto* path : {&entry.rgb_path, &entry.depth_path}) {
-      if (!std::filesystem::is_regular_file(*path)) {
-        throw Error("listed image not found: " + path->string());
-      }
+      if (!std::filesystem::exists(*path)) throw Error("listed image not found: " + path->string());
+      RejectNonRegularFile(*path);
     }
   }
 }

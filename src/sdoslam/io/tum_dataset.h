@@ -41,8 +41,9 @@ struct TumDatasetOptions {
 // sequence of any length costs the memory of one frame.
 class TumDataset {
  public:
-  // Throws Error for a missing folder or list, a malformed line (file:line), timestamps that do
-  // not increase, a listed image that does not exist, or no associated frame at all.
+  // Throws Error for a missing folder or list, a malformed line (file:line), timestamps that are
+  // absurd (ParseTimestamp) or do not increase, a listed image that does not exist or is not a
+  // regular file, or no associated frame at all.
   TumDataset(const std::filesystem::path& folder, const CameraOptions& camera,
              const TumDatasetOptions& options = {});
 
@@ -51,7 +52,8 @@ class TumDataset {
   const std::filesystem::path& folder() const { return folder_; }
 
   // Decodes frame `index`. Throws Error naming the file when an image does not decode, has the
-  // wrong size for the camera, or a depth image is not 16-bit single-channel.
+  // wrong size for the camera, a colour image is not 8-bit, or a depth image is not 16-bit
+  // single-channel.
   RgbdFrame Load(size_t index) const;
 
  private:

@@ -1,6 +1,7 @@
 #include "sdoslam/io/tum_dataset.h"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -145,6 +146,56 @@ TEST_F(TumDatasetTest, UndecodableWrongSizeAndEightBitDepth) {
   EXPECT_EQ(ErrorOf({}, SmallCamera(), 2),
             (dir_ / "depth" / "1.204000.png").string() +
                 ": depth must be a 16-bit single-channel PNG, found 8-bit with 3 channel(s)");
+}
+
+// A 16-bit colour PNG (or a depth image listed in rgb.txt) was decoded to 8 bits without a word
+// and tracked on.
+TEST_F(TumDatasetTest, SixteenBitColourImageIsNamed) {
+  cv::imwrite((dir_ / "rgb" / "1.100000.png").string(),
+              cv::Mat(24, 32, CV_16UC3, cv::Scalar(1000, 2000, 3000)));
+  EXPECT_EQ(ErrorOf({}, SmallCamera(), 1),
+            (dir_ / "rgb" / "1.100000.png").string() +
+                ": a 16-bit PNG; a colour frame must be an 8-bit colour image (is it a depth "
+                "image?)");
+  cv::imwrite((dir_ / "rgb" / "1.200000.png").string(), cv::Mat(24, 32, CV_16UC1));
+  EXPECT_NE(ErrorOf({}, SmallCamera(), 2).find("1.200000.png: a 16-bit PNG"), std::string::npos);
+}
+
+// A last rgb.txt line at 1e308 was dropped (no depth image near it) without a word.
+TEST_F(TumDatasetTest, AbsurdTimestampsAreNamedWithFileAndLine) {
+  testing::WriteText(dir_ / "rgb.txt",
+                     "# color\n1.0 rgb/1.000000.png\n1.1 rgb/1.100000.png\n1e308 rgb/x.png\n");
+  EXPECT_EQ(ErrorOf(), (dir_ / "rgb.txt").string() +
+                           ":4: timestamp 1e308 is not a time in seconds (beyond +-1e+10 s, the "
+                           "year 2286; nanoseconds?)");
+  testing::WriteText(dir_ / "assoc.txt", "1.0 rgb/1.000000.png -1e20 depth/1.004000.png\n");
+  TumDatasetOptions options;
+  options.associations = "assoc.txt";
+  EXPECT_NE(ErrorOf(options).find("assoc.txt:1: depth timestamp -1e20 is not a time in seconds"),
+            std::string::npos)
+      << ErrorOf(options);
+}
+
+// A listed image that is a FIFO would block the reader: refused when the dataset is opened, and,
+// swapped in after that, when the frame is read.
+TEST_F(TumDatasetTest, AListedImageThatIsNoRegularFileIsNamed) {
+  const auto image = dir_ / "rgb" / "1.200000.png";
+  {
+    TumDataset dataset(dir_.path(), SmallCamera());
+    std::filesystem::remove(image);
+    ASSERT_EQ(mkfifo(image.c_str(), 0600), 0);
+    EXPECT_EQ(testing::MessageOf([&] { dataset.Load(2); }),
+              image.string() + ": not a regular file");
+    EXPECT_NO_THROW(dataset.Load(3));
+  }
+  EXPECT_EQ(ErrorOf(), image.string() + ": not a regular file");
+  std::filesystem::remove(image);
+  std::filesystem::create_directory(image);
+  EXPECT_EQ(ErrorOf(), image.string() + ": not a regular file");
+  // The lists themselves.
+  std::filesystem::remove(dir_ / "rgb.txt");
+  ASSERT_EQ(mkfifo((dir_ / "rgb.txt").c_str(), 0600), 0);
+  EXPECT_EQ(ErrorOf(), (dir_ / "rgb.txt").string() + ": not a regular file");
 }
 
 TEST(TumDatasetReal, AssociationReproducesTheShippedAssociationsFile) {

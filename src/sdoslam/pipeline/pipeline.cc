@@ -599,6 +599,10 @@ RunSummary RunOnDataset(const RunOptions& options) {
     out.close();
     if (!out) throw IoError(path.string() + ": cannot write");
   }
+  // The loop sees a stop only before a frame: one that came during the last frame, while mapping
+  // finished or while the files were staged ended no loop early, yet the user asked to stop and
+  // must not be told "complete" with exit 0 after seeing "interrupted" printed.
+  if (run.stop_requested && run.stop_requested()) summary.interrupted = true;
   results.Commit(summary.interrupted ? "interrupted" : "complete",
                  {{"mode", ToString(run.mode)},
                   {"dataset", std::filesystem::absolute(run.dataset).lexically_normal().string()},

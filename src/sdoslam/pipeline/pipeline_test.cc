@@ -3,8 +3,10 @@
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <fstream>
@@ -20,6 +22,7 @@
 #include "sdoslam/eval/metrics.h"
 #include "sdoslam/io/omd.h"
 #include "sdoslam/io/point_cloud.h"
+#include "sdoslam/io/result_set.h"
 #include "sdoslam/synth/real_background.h"
 #include "sdoslam/synth/scenarios.h"
 #include "sdoslam/synth/sequence.h"
@@ -970,6 +973,57 @@ TEST(PipelineStages, AnInterruptedRunThatPreparesAheadStopsCleanly) {
   EXPECT_EQ(s.frames, 15u);
   EXPECT_EQ(seen, 15u);
   EXPECT_GE(s.trajectory.size(), 13u);
+}
+
+// The loop looked for a stop only before a frame: a signal during the last frame left the set
+// marked "complete", and `sdoslam run` exited 0 after printing "interrupted". A stop asked for
+// before the commit marks the set "interrupted" (the command then exits 130 or 143).
+TEST(PipelineStages, AStopDuringTheLastFrameMarksTheRunInterrupted) {
+  testing::TempDir dir;
+  const auto sequence = WriteShortWalk(dir, 5);
+  for (bool prepare_ahead : {false, true}) {
+    RunOptions run =
+        SyntheticRun(sequence, dir / fmt::format("out_{}", prepare_ahead), RunMode::kConventional);
+    run.prepare_ahead = prepare_ahead;
+    std::atomic<bool> stop{false};
+    run.after_frame = [&](const TrackingResult& r, const System&) {
+      if (r.index == 4) stop = true;  // the signal, arriving while the last frame is in hand
+    };
+    run.stop_requested = [&] { return stop.load(); };
+    const RunSummary s = RunOnDataset(run);
+    EXPECT_TRUE(s.interrupted) << "prepare_ahead " << prepare_ahead;
+    EXPECT_EQ(s.frames, 5u);
+    EXPECT_EQ(ReadResultManifest(run.out).status, "interrupted");
+  }
+}
+
+// An image replaced by a FIFO during a run blocked the reader for good. Each read checks that it
+// reads a regular file: the run fails naming the image, inline and reading ahead alike.
+TEST(PipelineStages, AnImageSwappedForAFifoMidRunIsNamedInsteadOfWaitedFor) {
+  testing::TempDir dir;
+  const auto sequence = WriteShortWalk(dir, 12);
+  std::vector<std::filesystem::path> rgb;
+  for (const auto& e : std::filesystem::directory_iterator(sequence / "rgb"))
+    rgb.push_back(e.path());
+  std::sort(rgb.begin(), rgb.end());
+  ASSERT_EQ(rgb.size(), 12u);
+  const std::filesystem::path image = rgb[9], kept = dir / "kept.png";
+  std::filesystem::copy_file(image, kept);
+  for (bool prepare_ahead : {false, true}) {
+    RunOptions run =
+        SyntheticRun(sequence, dir / fmt::format("out_{}", prepare_ahead), RunMode::kConventional);
+    run.prepare_ahead = prepare_ahead;
+    run.after_frame = [&](const TrackingResult& r, const System&) {
+      if (r.index != 2) return;  // the dataset was opened (and checked) long before
+      std::filesystem::remove(image);
+      ASSERT_EQ(mkfifo(image.c_str(), 0600), 0);
+    };
+    EXPECT_EQ(testing::MessageOf([&] { RunOnDataset(run); }),
+              image.string() + ": not a regular file")
+        << "prepare_ahead " << prepare_ahead;
+    std::filesystem::remove(image);
+    std::filesystem::copy_file(kept, image);
+  }
 }
 
 // At the camera's rate, frame i is read no earlier than i periods after the first: six frames of

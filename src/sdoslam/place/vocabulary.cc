@@ -8,13 +8,14 @@
 #include <cstring>
 #include <deque>
 #include <filesystem>
-#include <fstream>
 #include <iterator>
+#include <optional>
 #include <random>
 #include <utility>
 
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
+#include "sdoslam/core/regular_file.h"
 #include "sdoslam/features/orb_extractor.h"
 
 namespace sdoslam {
@@ -459,15 +460,19 @@ std::string Vocabulary::ToBytes() const {
 void Vocabulary::Save(const std::string& path) const {
   if (size() == 0) throw Error("cannot save an empty vocabulary to " + path);
   const std::string bytes = ToBytes();
+  if (bytes.size() > kMaxVocabularyBytes) {
+    throw Error(
+        fmt::format("{}: a vocabulary of {} words is {} bytes, more than the {} a "
+                    "vocabulary file may have; use a smaller depth or branching",
+                    path, size(), bytes.size(), kMaxVocabularyBytes));
+  }
   WriteFileAtomically(path, [&](std::ostream& out) { out.write(bytes.data(), bytes.size()); });
 }
 
 Vocabulary Vocabulary::Load(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in || std::filesystem::is_directory(path)) throw Error("file not found: " + path);
-  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) throw Error("cannot read " + path);
-  return FromBytes(bytes.data(), bytes.size(), path);
+  const std::optional<std::string> bytes = ReadRegularFileIfExists(path, kMaxVocabularyBytes);
+  if (!bytes) throw Error("file not found: " + path);
+  return FromBytes(bytes->data(), bytes->size(), path);
 }
 
 Vocabulary Vocabulary::FromBytes(const void* data, size_t size, const std::string& name) {

@@ -19,6 +19,11 @@ using BowVector = std::map<WordId, double>;
 // (ascending). For vocabulary-guided matching: only features under the same node are compared.
 using FeatureVector = std::map<uint32_t, std::vector<int>>;
 
+// The largest vocabulary file read or written: 2 * 10^7 words at branching 10 (ORB-SLAM's has
+// 10^6 in 45 MB). A sanity limit, so that a wrong file fails with its size instead of being
+// read into memory first.
+inline constexpr uint64_t kMaxVocabularyBytes = uint64_t{1} << 30;
+
 struct VocabularyOptions {
   int branching = 10;  // children per node (k of the k-medians)
   int depth = 4;       // levels below the root: at most branching^depth words
@@ -53,12 +58,14 @@ class Vocabulary {
   static Vocabulary Train(const std::vector<cv::Mat>& descriptor_sets,
                           const VocabularyOptions& options);
 
-  // The binary format Save writes. Throws Error naming the file when it is missing,
-  // truncated, not a vocabulary (magic), of another format version, or corrupt (checksum).
+  // The binary format Save writes. Throws Error naming the file when it is missing, not a
+  // regular file, larger than kMaxVocabularyBytes, truncated, not a vocabulary (magic), of
+  // another format version, or corrupt (checksum).
   static Vocabulary Load(const std::string& path);
   // The same format from memory; `name` stands for the file in messages.
   static Vocabulary FromBytes(const void* data, size_t size, const std::string& name);
-  // Written atomically (core/atomic_file.h); throws IoError when it cannot be written.
+  // Written atomically (core/atomic_file.h); throws IoError when it cannot be written, Error
+  // when it would be larger than kMaxVocabularyBytes (Load would refuse it).
   void Save(const std::string& path) const;
   std::string ToBytes() const;  // what Save writes
 

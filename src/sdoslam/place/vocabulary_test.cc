@@ -1,6 +1,7 @@
 #include "sdoslam/place/vocabulary.h"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <array>
 #include <cmath>
@@ -263,6 +264,24 @@ TEST_F(VocabularyFile, BadFilesAreNamedErrors) {
   // From memory, the name given stands for the file.
   EXPECT_EQ(testing::MessageOf([&] { Vocabulary::FromBytes("nonsense", 8, "blob"); }),
             "blob: not an sdoslam vocabulary (bad magic)");
+}
+
+// `vocab info /dev/zero` grew to 4 GB before bad_alloc, and a FIFO hung it: anything but a
+// regular file is refused at once, and so is a file larger than any vocabulary (a sparse one
+// here: it takes no disk).
+TEST_F(VocabularyFile, FilesThatAreNoVocabularyAreRefusedBeforeTheyAreRead) {
+  const std::string fifo = (dir_ / "fifo.sdv").string();
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  for (const std::string& path : {fifo, dir_.path().string(), std::string("/dev/zero")}) {
+    EXPECT_EQ(testing::MessageOf([&] { Vocabulary::Load(path); }), path + ": not a regular file");
+  }
+  const std::filesystem::path huge = dir_ / "huge.sdv";
+  std::ofstream(huge).put('x');
+  std::filesystem::resize_file(huge, kMaxVocabularyBytes + 1);
+  const std::string message = testing::MessageOf([&] { Vocabulary::Load(huge.string()); });
+  EXPECT_EQ(message.find(huge.string() + ": " + std::to_string(kMaxVocabularyBytes + 1) + " bytes"),
+            0u)
+      << message;
 }
 
 TEST(Vocabulary, TrainingIsDeterministicAndUsesTheSeed) {

@@ -1,5 +1,6 @@
 #include "sdoslam/slam/system.h"
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 #include <yaml-cpp/yaml.h>
 
@@ -16,6 +17,13 @@ namespace sdoslam {
 void RgbdOptions::Check(const std::string& path) const {
   if (!(bf > 0)) throw Error(path + "bf must be positive");
   if (!(close_depth_baselines > 0)) throw Error(path + "close_depth_baselines must be positive");
+  // Positive is not enough (1e308 passed): a baseline of 10 m at an fx of 10^4 pixels is 10^5,
+  // and a close-depth limit of 10^4 baselines is none.
+  if (!(bf <= 1e5)) throw Error(fmt::format("{}bf must be at most 1e5, got {:g}", path, bf));
+  if (!(close_depth_baselines <= 1e4)) {
+    throw Error(fmt::format("{}close_depth_baselines must be at most 1e4, got {:g}", path,
+                            close_depth_baselines));
+  }
 }
 
 void SlamOptions::Check() const {

@@ -953,6 +953,9 @@ TEST(SlamOptionsTest, CheckMessagesNameTheConfigPath) {
               "c.yaml: tracking.min_frames_between_keyframes must lie in [0, "
               "tracking.max_frames_between_keyframes]");
   EXPECT_EQ(ErrorOf("rgbd:\n  bf: 0\n"), "c.yaml: rgbd.bf must be positive");
+  EXPECT_EQ(ErrorOf("rgbd:\n  bf: 1e308\n"), "c.yaml: rgbd.bf must be at most 1e5, got 1e+308");
+  EXPECT_EQ(ErrorOf("rgbd:\n  close_depth_baselines: .inf\n"),
+            "c.yaml: rgbd.close_depth_baselines must be at most 1e4, got inf");
   EXPECT_EQ(ErrorOf("orb:\n  detection_cell: 5\n"),
             "c.yaml: orb.detection_cell must be >= 10 pixels");
   // An old key's value is checked under its new name.

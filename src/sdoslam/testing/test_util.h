@@ -61,6 +61,20 @@ inline void ExpectErrorMentioning(const std::function<void()>& f, const std::str
   EXPECT_NE(message.find(part), std::string::npos) << message;
 }
 
+// A YAML "alias bomb": anchors a, b, ... each a list of ten aliases of the one before (the first
+// of ten plain values), `levels` of them: 10^levels nodes once expanded, in a few hundred bytes.
+inline std::string YamlAliasBomb(int levels) {
+  std::string yaml = "a: &a [x, x, x, x, x, x, x, x, x, x]\n";
+  for (int level = 1; level < levels; ++level) {
+    const std::string name(1, static_cast<char>('a' + level));
+    const std::string before(1, static_cast<char>('a' + level - 1));
+    yaml += name + ": &" + name + " [";
+    for (int k = 0; k < 10; ++k) yaml += (k ? ", *" : "*") + before;
+    yaml += "]\n";
+  }
+  return yaml;
+}
+
 // ../shared next to the checkout; tests that need it skip when it is absent.
 inline std::filesystem::path SharedDir() { return SDOSLAM_SHARED_DIR; }
 inline std::filesystem::path SourceDir() { return SDOSLAM_SOURCE_DIR; }
