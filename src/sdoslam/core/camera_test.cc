@@ -146,6 +146,9 @@ TEST(CameraConfig, BadConfigsAreRejectedWithTheKey) {
             std::string::npos);
   EXPECT_NE(message("camera:\n  fx: -5\n  fy: 500\n  cx: 320\n  cy: 240\n").find("camera.fx"),
             std::string::npos);
+  // A run's config may be given for its camera: the run's own sections are left to `run`.
+  EXPECT_EQ(message(ok + "mode: sdo\ntracking:\n  local_map_radius: 3\nmapping: {}\n"),
+            "(no error)");
   EXPECT_NE(message("other: 1\n").find("unknown key 'other'"), std::string::npos);
   EXPECT_NE(message("{}\n").find("missing the 'camera:' section"), std::string::npos);
 }

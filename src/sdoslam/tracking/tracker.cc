@@ -282,7 +282,7 @@ bool Tracker::TrackLocalMap(Frame& frame, TrackingResult* result) {
     p->last_seen_frame = frame_stamp_;
     ++p->visible;
   }
-  SearchLocalPoints(frame, local.points, frame_stamp_, 1.0);
+  SearchLocalPoints(frame, local.points, frame_stamp_, options_.local_map_radius);
   local_points_ = std::move(local.points);
   for (const MapPoint* p : frame.map_points) result->matches += p != nullptr && !p->bad;
   OptimizeAndCount(frame);
