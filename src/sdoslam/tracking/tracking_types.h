@@ -128,6 +128,12 @@ struct TrackingResult {
   int features_with_depth = 0;
   int matches = 0;  // map points matched before the final pose optimisation
   int inliers = 0;  // matched map points after it
+  // What the local-map search added to the matches (those of the motion model or the fallback
+  // before it), and what the keyframe decision saw: the reference keyframe's points that enough
+  // keyframes see, and the close points tracked and untracked (-1: no decision was made).
+  int local_map_matches = 0;
+  int reference_matches = -1;
+  int close_tracked = -1, close_untracked = -1;
   bool keyframe = false;
   bool relocalized = false;                          // tracked again after lost frames
   size_t keyframes_alive = 0, map_points_alive = 0;  // the map's size after this frame
