@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <opencv2/calib3d.hpp>
+#include <string>
 #include <tuple>
 
 #include "sdoslam/core/error.h"
@@ -128,6 +129,17 @@ void WriteCameraOptions(const CameraOptions& o, YAML::Emitter* out) {
 CameraOptions LoadCameraConfig(const std::filesystem::path& path) {
   ConfigMap root = ConfigMap::LoadFile(path);
   std::optional<ConfigMap> section = root.Section("camera");
+  // A run's config (configs/tum_fr1.yaml tunes tracking:, a run's config.yaml has them all)
+  // may be given where only its camera is wanted (convert --config, synth --camera): the run's
+  // own sections are left to `run`, which reads and checks them; other keys are still errors.
+  for (const char* key : {"orb", "rgbd", "tracking", "mapping", "loop_closing", "dynamic", "run",
+                          "versions", "consistency"}) {
+    root.Section(key);
+  }
+  for (const char* key : {"mode", "vocabulary"}) {
+    std::string ignored;
+    root.Read(key, &ignored);
+  }
   root.RejectUnknownKeys();
   if (!section) throw Error(path.string() + ": missing the 'camera:' section");
   return ReadCameraOptions(*section);

@@ -202,6 +202,9 @@ TEST(CameraConfig, BadConfigsAreRejectedWithTheKey) {
   EXPECT_NE(huge.find("got 1e+308"), std::string::npos) << huge;
   EXPECT_NE(message(ok + "  depth_factor: 1e308\n").find("camera.depth_factor: "),
             std::string::npos);
+  // A run's config may be given for its camera: the run's own sections are left to `run`.
+  EXPECT_EQ(message(ok + "mode: sdo\ntracking:\n  local_map_radius: 3\nmapping: {}\n"),
+            "(no error)");
   EXPECT_NE(message("other: 1\n").find("unknown key 'other'"), std::string::npos);
   EXPECT_NE(message("{}\n").find("missing the 'camera:' section"), std::string::npos);
 }

@@ -423,7 +423,8 @@ RunSummary RunOnDataset(const RunOptions& options) {
       "keyframe,check_iterations,check_converged,check_reverted,check_measured,check_dynamic,"
       "culled_points,front_end_ms,segment_ms,detect_ms,flow_ms,classify_ms,features_ms,"
       "tracking_ms,mapping_ms,keyframes,map_points,check_rough_samples,check_static_samples,"
-      "check_replaced,latency_ms,lock_wait_ms,relocalized,queued_ms\n";
+      "check_replaced,latency_ms,lock_wait_ms,relocalized,queued_ms,local_map_matches,"
+      "reference_matches,close_tracked,close_untracked\n";
   std::string feature_log = "index,x,y,label\n";
   std::vector<double> frame_ms, front_end_ms, mapping_ms, total_ms, latency_ms, queued_ms;
   std::vector<double> segment_ms, detect_ms, flow_ms, classify_ms;
@@ -475,7 +476,7 @@ RunSummary RunOnDataset(const RunOptions& options) {
     log += fmt::format(
         "{},{:.6f},{},{},{},{},{},{},{},{},{},{},{},{},{},"
         "{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{},{},{},{},{},{:.2f},{:.2f},{},{:"
-        ".2f}\n",
+        ".2f},{},{},{},{}\n",
         i, r.timestamp, ToString(r.state), r.features, r.features_with_depth, dynamic_features,
         r.matches, r.inliers, r.keyframe ? 1 : 0, r.check_iterations, r.check_converged ? 1 : 0,
         r.check_reverted ? 1 : 0, r.check_measured, r.check_dynamic, r.culled_points,
@@ -483,7 +484,8 @@ RunSummary RunOnDataset(const RunOptions& options) {
         front_timing.classify_ms, timing.features_ms, timing.tracking_ms, timing.mapping_ms,
         r.keyframes_alive, r.map_points_alive, r.check_rough_samples, r.check_static_samples,
         r.check_replaced ? 1 : 0, out.latency_ms, timing.lock_wait_ms, r.relocalized ? 1 : 0,
-        out.queued_ms);
+        out.queued_ms, r.local_map_matches, r.reference_matches, r.close_tracked,
+        r.close_untracked);
     if (r.relocalized) summary.relocalizations.push_back(i);
     if (!labels.empty() && mask_evaluator) {
       mask_evaluator->AddFrame(rgb_paths[i], labels, r.feature_points, r.feature_labels);

@@ -952,6 +952,8 @@ TEST(SlamOptionsTest, CheckMessagesNameTheConfigPath) {
     EXPECT_EQ(ErrorOf(std::string("tracking:\n  min_frames_between_keyframes: ") + spacing + "\n"),
               "c.yaml: tracking.min_frames_between_keyframes must lie in [0, "
               "tracking.max_frames_between_keyframes]");
+  EXPECT_EQ(ErrorOf("tracking:\n  local_map_radius: 0\n"),
+            "c.yaml: tracking.local_map_radius must be positive");
   EXPECT_EQ(ErrorOf("rgbd:\n  bf: 0\n"), "c.yaml: rgbd.bf must be positive");
   EXPECT_EQ(ErrorOf("rgbd:\n  bf: 1e308\n"), "c.yaml: rgbd.bf must be at most 1e5, got 1e+308");
   EXPECT_EQ(ErrorOf("rgbd:\n  close_depth_baselines: .inf\n"),

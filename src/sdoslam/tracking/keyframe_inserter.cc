@@ -12,23 +12,28 @@ int ReferenceMatches(const Map& map, const KeyFrame& reference) {
   return reference.TrackedPoints(min_observations);
 }
 
-bool NeedKeyFrame(const TrackerOptions& options, const Frame& frame,
-                  const KeyFrameDecisionInput& input) {
-  const int inliers = input.inliers;
-  const int reference_matches = input.reference_matches;
-  int tracked_close = 0, untracked_close = 0;
+ClosePoints CountClosePoints(const Frame& frame) {
+  ClosePoints close;
   for (size_t i = 0; i < frame.size(); ++i) {
     if (!frame.IsStaticWithDepth(static_cast<int>(i)) ||
         frame.depth[i] > frame.geometry->close_depth)
       continue;
     if (frame.map_points[i] != nullptr && !frame.outlier[i]) {
-      ++tracked_close;
+      ++close.tracked;
     } else {
-      ++untracked_close;
+      ++close.untracked;
     }
   }
+  return close;
+}
+
+bool NeedKeyFrame(const TrackerOptions& options, const Frame& frame,
+                  const KeyFrameDecisionInput& input) {
+  const int inliers = input.inliers;
+  const int reference_matches = input.reference_matches;
+  const ClosePoints close = CountClosePoints(frame);
   const bool need_close =
-      tracked_close < options.min_close_points && untracked_close > options.close_points_to_create;
+      close.tracked < options.min_close_points && close.untracked > options.close_points_to_create;
   const bool long_since =
       frame.index >=
       input.last_keyframe_frame + static_cast<size_t>(options.max_frames_between_keyframes);

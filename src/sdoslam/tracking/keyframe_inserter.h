@@ -20,6 +20,13 @@ struct KeyFrameDecisionInput {
 // decision: 1, 2 or 3 keyframes when the map has 1, 2 or more good keyframes.
 int ReferenceMatches(const Map& map, const KeyFrame& reference);
 
+// The frame's static features with depth within close_depth: those tracked (an inlier map
+// point) and the rest, which a keyframe could make points of.
+struct ClosePoints {
+  int tracked = 0, untracked = 0;
+};
+ClosePoints CountClosePoints(const Frame& frame);
+
 // ORB-SLAM2's keyframe decision (RGB-D), for a tracked `frame`: a keyframe when the frame tracks
 // more than 15 inliers but fewer than reference_ratio of the reference's matches, or too few
 // close points while many untracked close ones could be made (min_close_points,

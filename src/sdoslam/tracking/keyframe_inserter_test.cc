@@ -49,6 +49,24 @@ class KeyFrameInserterTest : public ::testing::Test {
   TrackerOptions options_;
 };
 
+// What frames.csv logs of the decision: close features with depth, matched as inliers or not;
+// far ones, those without depth and outliers' matches counted as the decision counts them.
+TEST_F(KeyFrameInserterTest, ClosePointsAreCountedAsTheDecisionSeesThem) {
+  ASSERT_GE(close_.size(), 4u);
+  TrackAllClose();
+  ClosePoints close = CountClosePoints(*frame_);
+  EXPECT_EQ(close.tracked, static_cast<int>(close_.size()));
+  EXPECT_EQ(close.untracked, 0);
+  frame_->outlier[close_[0]] = true;  // an outlier's match does not count as tracked
+  frame_->map_points[close_[1]] = nullptr;
+  for (size_t i = 0; i < frame_->size(); ++i) {
+    if (!IsClose(i)) frame_->map_points[i] = placeholder_;  // far or no depth: never counted
+  }
+  close = CountClosePoints(*frame_);
+  EXPECT_EQ(close.tracked, static_cast<int>(close_.size()) - 2);
+  EXPECT_EQ(close.untracked, 2);
+}
+
 TEST_F(KeyFrameInserterTest, AFrameThatTracksMostOfTheReferenceNeedsNone) {
   ASSERT_GE(close_.size(), static_cast<size_t>(options_.min_close_points));
   TrackAllClose();

@@ -159,11 +159,15 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
         StaticFeaturesWithDepth(frame) < options_.keyframes_min_static_features;
     const bool static_view_vouches = !narrow_static_view || !last_narrow_static_view_;
     last_narrow_static_view_ = narrow_static_view;
+    result.reference_matches = ReferenceMatches(*map_, *reference_);
+    const ClosePoints close = CountClosePoints(frame);
+    result.close_tracked = close.tracked;
+    result.close_untracked = close.untracked;
     if (mapping_accepts && (judged || !options_.keyframes_only_from_judged_frames) &&
         static_view_vouches &&
         NeedKeyFrame(options_, frame,
                      {.inliers = result.inliers,
-                      .reference_matches = ReferenceMatches(*map_, *reference_),
+                      .reference_matches = result.reference_matches,
                       .last_keyframe_frame = last_keyframe_frame_,
                       .mapping_idle = mapping_idle,
                       .good_keyframes = map_->GoodKeyFrames()})) {
@@ -282,7 +286,8 @@ bool Tracker::TrackLocalMap(Frame& frame, TrackingResult* result) {
     p->last_seen_frame = frame_stamp_;
     ++p->visible;
   }
-  SearchLocalPoints(frame, local.points, frame_stamp_, 1.0);
+  result->local_map_matches =
+      SearchLocalPoints(frame, local.points, frame_stamp_, options_.local_map_radius);
   local_points_ = std::move(local.points);
   for (const MapPoint* p : frame.map_points) result->matches += p != nullptr && !p->bad;
   OptimizeAndCount(frame);

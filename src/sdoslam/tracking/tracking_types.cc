@@ -29,6 +29,7 @@ void TrackerOptions::Check(const std::string& path) const {
   if (!(reference_ratio > 0 && reference_ratio < 1))
     throw Error(path + "reference_ratio must be in (0, 1)");
   if (!(projection_radius > 0)) throw Error(path + "projection_radius must be positive");
+  if (!(local_map_radius > 0)) throw Error(path + "local_map_radius must be positive");
   if (relocalization_candidates < 0) throw Error(path + "relocalization_candidates must be >= 0");
   if (relocalization_place_candidates < 0)
     throw Error(path + "relocalization_place_candidates must be >= 0");

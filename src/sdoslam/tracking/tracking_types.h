@@ -37,6 +37,13 @@ struct TrackerOptions {
   int min_close_points = 100;       // keyframe when fewer close points are tracked...
   int close_points_to_create = 70;  // ...and at least this many new ones could be made
   double projection_radius = 15.0;  // px at level 0, motion-model search
+  // The local-map search's window, times the view-angle and pyramid-level window (2.5 or 4 px
+  // times the level's scale). ORB-SLAM2 uses 3 for RGB-D. Under fast hand-held rotation with
+  // blur (TUM freiburg1 rpy) the map points land farther from where the pose predicts them than
+  // 1x finds: on its first 300 frames 1 finds 100-150 of the local map's points a frame and
+  // conventional tracking drifts to 62 mm ATE (threaded 55-79), 3 gives 35 mm (29-41). 1 stays the
+  // default because fr2_desk_50 (slow) goes 3.3 -> 3.7 mm with 3; configs/tum_fr1.yaml sets 3.
+  double local_map_radius = 1.0;
   // Lost: the reference keyframe, this many of its best neighbours and this many of the last
   // keyframes are tried, each by descriptor matching and PnP in RANSAC.
   int relocalization_candidates = 5;
@@ -87,6 +94,7 @@ struct TrackerOptions {
     visit("min_close_points", o.min_close_points);
     visit("close_points_to_create", o.close_points_to_create);
     visit("projection_radius", o.projection_radius);
+    visit("local_map_radius", o.local_map_radius);
     visit("relocalization_candidates", o.relocalization_candidates);
     visit("relocalization_place_candidates", o.relocalization_place_candidates);
     visit("relocalization_prior_frames", o.relocalization_prior_frames);
@@ -120,6 +128,12 @@ struct TrackingResult {
   int features_with_depth = 0;
   int matches = 0;  // map points matched before the final pose optimisation
   int inliers = 0;  // matched map points after it
+  // What the local-map search added to the matches (those of the motion model or the fallback
+  // before it), and what the keyframe decision saw: the reference keyframe's points that enough
+  // keyframes see, and the close points tracked and untracked (-1: no decision was made).
+  int local_map_matches = 0;
+  int reference_matches = -1;
+  int close_tracked = -1, close_untracked = -1;
   bool keyframe = false;
   bool relocalized = false;                          // tracked again after lost frames
   size_t keyframes_alive = 0, map_points_alive = 0;  // the map's size after this frame
