@@ -22,21 +22,10 @@
 namespace sdoslam {
 namespace {
 
-struct Result {
-  int exit_code;
-  std::string output;  // stdout and stderr together
-};
+using Result = testing::CommandResult;
 
 Result RunSdoslam(const std::string& arguments) {
-  const std::string command = std::string(SDOSLAM_EXECUTABLE) + " " + arguments + " 2>&1";
-  FILE* pipe = popen(command.c_str(), "r");
-  if (pipe == nullptr) return {-1, "popen failed"};
-  std::string output;
-  std::array<char, 4096> buffer;
-  size_t n;
-  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) output.append(buffer.data(), n);
-  const int status = pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
+  return testing::RunCommand(std::string(SDOSLAM_EXECUTABLE) + " " + arguments);
 }
 
 TEST(Cli, HelpListsSubcommands) {

@@ -3,8 +3,6 @@
 // that links elsewhere.
 #include <gtest/gtest.h>
 
-#include <array>
-#include <cstdio>
 #include <map>
 #include <vector>
 
@@ -16,35 +14,18 @@ namespace fs = std::filesystem;
 using testing::ReadText;
 using testing::WriteText;
 
-struct Result {
-  int exit_code;
-  std::string output;  // stdout and stderr together
-};
+using Result = testing::CommandResult;
 
 Result Sdoslam(const std::string& arguments) {
-  // Appended piece by piece: GCC 12 warns (-Warray-bounds, a false positive) on the sum.
+  // Appended piece by piece: GCC 12 warns (-Warray-bounds, a false positive) on the sum here.
   std::string command = SDOSLAM_EXECUTABLE;
-  command += " ";
+  command += ' ';
   command += arguments;
-  command += " 2>&1";
-  FILE* pipe = popen(command.c_str(), "r");
-  if (pipe == nullptr) return {-1, "popen failed"};
-  std::string output;
-  std::array<char, 4096> buffer;
-  size_t n;
-  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) output.append(buffer.data(), n);
-  const int status = pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
+  return testing::RunCommand(command);
 }
 
-// Every regular file under `folder` with its content, symbolic links not followed.
 std::map<std::string, std::string> Snapshot(const fs::path& folder) {
-  std::map<std::string, std::string> files;
-  for (const auto& e : fs::recursive_directory_iterator(folder)) {
-    if (fs::is_regular_file(e.symlink_status()))
-      files[fs::relative(e.path(), folder).generic_string()] = ReadText(e.path());
-  }
-  return files;
+  return testing::FilesUnder(folder);
 }
 
 class NeverDestroy : public ::testing::Test {

@@ -38,14 +38,8 @@ void WriteOurs(const fs::path& out, const std::map<std::string, std::string>& fi
   folder.Commit();
 }
 
-// Every regular file under `folder` (relative path -> content), symbolic links not followed.
 std::map<std::string, std::string> Contents(const fs::path& folder) {
-  std::map<std::string, std::string> found;
-  for (const auto& e : fs::recursive_directory_iterator(folder)) {
-    if (fs::is_regular_file(e.symlink_status()))
-      found[fs::relative(e.path(), folder).generic_string()] = ReadText(e.path());
-  }
-  return found;
+  return testing::FilesUnder(folder);
 }
 
 // Names in `parent` that a staging folder of `out` would have.

@@ -19,6 +19,7 @@
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/interrupt.h"
+#include "sdoslam/core/regular_file.h"
 #include "sdoslam/io/output_folder.h"
 
 namespace sdoslam {
@@ -180,6 +181,7 @@ const ResultFileEntry* ResultManifest::Find(const std::string& relative_path) co
 }
 
 std::string Sha256OfFile(const fs::path& path) {
+  RejectNonRegularFile(path);  // a FIFO in a result folder would block the reader
   std::ifstream in(path, std::ios::binary);
   if (!in) throw IoError(path.string() + ": cannot read");
   std::unique_ptr<EVP_MD_CTX, decltype(&EVP_MD_CTX_free)> context(EVP_MD_CTX_new(),
@@ -358,11 +360,10 @@ ResultManifest ResultSetWriter::Commit(const std::string& status, const nlohmann
 
 ResultManifest ReadResultManifest(const fs::path& out) {
   const fs::path path = out / kManifestName;
-  std::ifstream in(path);
-  if (!in) throw Error(path.string() + ": cannot open");
+  const std::string text = ReadRegularFile(path, uint64_t{256} << 20);
   nlohmann::json json;
   try {
-    json = nlohmann::json::parse(in);
+    json = nlohmann::json::parse(text);
   } catch (const nlohmann::json::exception& e) {
     throw Error(path.string() + ": not valid JSON (" + e.what() + ")");
   }
@@ -396,6 +397,7 @@ void VerifyEntry(const fs::path& out, const ResultFileEntry& f) {
   const std::string advice =
       " (changed after the run wrote it, or the run was cut off while committing; rerun it)";
   std::error_code ec;
+  RejectNonRegularFile(path);
   if (!fs::is_regular_file(path, ec))
     throw Error(path.string() + ": missing from the result set that manifest.json describes" +
                 advice);

@@ -3,6 +3,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -116,6 +117,22 @@ TEST(ResultSet, FilesItDidNotWriteAreNeverReplacedOrRemoved) {
   }
   EXPECT_FALSE(fs::exists(out / "masks/0001.png"));
   EXPECT_EQ(ReadText(out / "masks/0009.png"), "the user's");
+}
+
+TEST(ResultSet, AManifestOrResultThatIsNoRegularFileIsRefusedAtOnce) {
+  TempDir dir;
+  const fs::path out = dir / "out";
+  {
+    ResultSetWriter writer(out);
+    writer.WriteText("frames.csv", "rows");
+    writer.Commit("complete", {});
+  }
+  fs::remove(out / "frames.csv");
+  ASSERT_EQ(::mkfifo((out / "frames.csv").c_str(), 0644), 0);
+  EXPECT_THAT(MessageOf([&] { VerifyResultSet(out); }), HasSubstr("not a regular file"));
+  fs::remove(out / kManifestName);
+  ASSERT_EQ(::mkfifo((out / kManifestName).c_str(), 0644), 0);
+  EXPECT_THAT(MessageOf([&] { VerifyResultSet(out); }), HasSubstr("not a regular file"));
 }
 
 TEST(ResultSet, AMasksFolderThatLinksElsewhereIsNeverWrittenThroughNorEmptied) {

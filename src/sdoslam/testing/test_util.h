@@ -1,11 +1,14 @@
 #pragma once
 
 #include <gtest/gtest.h>
+#include <stdio.h>
 #include <stdlib.h>
+#include <sys/wait.h>
 
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <map>
 #include <stdexcept>
 #include <string>
 #include <system_error>
@@ -73,6 +76,37 @@ inline std::string YamlAliasBomb(int levels) {
     yaml += "]\n";
   }
   return yaml;
+}
+
+// Every regular file under `folder` (relative '/'-separated path -> content), symbolic links
+// not followed: a folder's state, to compare before and after a command.
+inline std::map<std::string, std::string> FilesUnder(const std::filesystem::path& folder) {
+  std::map<std::string, std::string> files;
+  for (const auto& e : std::filesystem::recursive_directory_iterator(folder)) {
+    if (std::filesystem::is_regular_file(e.symlink_status()))
+      files[e.path().lexically_relative(folder).generic_string()] = ReadText(e.path());
+  }
+  return files;
+}
+
+// What a shell command printed (stdout and stderr together) and its exit code (-1: it did not
+// exit normally).
+struct CommandResult {
+  int exit_code;
+  std::string output;
+};
+
+inline CommandResult RunCommand(const std::string& command_line) {
+  std::string command = command_line;
+  command += " 2>&1";
+  FILE* pipe = popen(command.c_str(), "r");
+  if (pipe == nullptr) return {-1, "popen failed"};
+  std::string output;
+  char buffer[4096];
+  size_t n;
+  while ((n = fread(buffer, 1, sizeof(buffer), pipe)) > 0) output.append(buffer, n);
+  const int status = pclose(pipe);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
 }
 
 // ../shared next to the checkout; tests that need it skip when it is absent.
