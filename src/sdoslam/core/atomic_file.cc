@@ -94,24 +94,25 @@ void WriteFileAtomically(const std::filesystem::path& path,
   Commit(tmp, path);
 }
 
-void SyncToDisk(const std::filesystem::path& path) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+namespace {
+
+// Opens `path` (with `flags`), runs `sync` (fsync or syncfs) on it; throws IoError naming it.
+void SyncThrough(const std::filesystem::path& path, int flags, int (*sync)(int)) {
+  const int fd = ::open(path.c_str(), flags | O_RDONLY | O_CLOEXEC);
   if (fd < 0)
     throw IoError("cannot open " + path.string() + " to sync it: " + std::strerror(errno));
-  const int rc = ::fsync(fd);
+  const int rc = sync(fd);
   const int saved = errno;
   ::close(fd);
   if (rc != 0) throw IoError("cannot sync " + path.string() + ": " + std::strerror(saved));
 }
 
+}  // namespace
+
+void SyncToDisk(const std::filesystem::path& path) { SyncThrough(path, 0, ::fsync); }
+
 void SyncFileSystemOf(const std::filesystem::path& folder) {
-  const int fd = ::open(folder.c_str(), O_DIRECTORY | O_RDONLY | O_CLOEXEC);
-  if (fd < 0)
-    throw IoError("cannot open " + folder.string() + " to sync it: " + std::strerror(errno));
-  const int rc = ::syncfs(fd);
-  const int saved = errno;
-  ::close(fd);
-  if (rc != 0) throw IoError("cannot sync " + folder.string() + ": " + std::strerror(saved));
+  SyncThrough(folder, O_DIRECTORY, ::syncfs);
 }
 
 }  // namespace sdoslam

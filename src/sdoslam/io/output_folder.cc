@@ -52,7 +52,11 @@ bool IsWithin(const fs::path& inner, const fs::path& outer) {
 
 // `.NAME.sdoslam-staging-` for `out`: the prefix of its staging folders' names.
 std::string StagingPrefix(const fs::path& out) {
-  return "." + out.filename().string() + kStagingInfix;
+  // Appended piece by piece: GCC 12 warns (-Wrestrict, a false positive) on `"." + string`.
+  std::string prefix = ".";
+  prefix += out.filename().string();
+  prefix += kStagingInfix;
+  return prefix;
 }
 
 fs::path ParentOf(const fs::path& out) {

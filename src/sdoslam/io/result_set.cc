@@ -95,16 +95,18 @@ void WriteFileAtomicallySynced(const fs::path& path, const std::string& text) {
 void ApplyJournal(const fs::path& out, const std::function<void()>& step) {
   const fs::path journal_path = out / kJournalName;
   nlohmann::json journal;
+  std::string staging_name;
   try {
     std::ifstream in(journal_path);
     journal = nlohmann::json::parse(in);
     if (journal.at("format").get<std::string>() != kJournalFormat) throw Error("format");
+    staging_name = journal.at("staging").get<std::string>();
+    for (const auto& item : journal.at("stale")) item.get<std::string>();  // all strings
   } catch (const std::exception&) {
     throw IoError(journal_path.string() +
                   " is damaged: the commit it describes cannot be finished; remove the folder's "
                   "results by hand and rerun");
   }
-  const std::string staging_name = journal.at("staging").get<std::string>();
   if (!IsStagingName(staging_name) || staging_name.find('/') != std::string::npos)
     throw IoError(journal_path.string() + ": names no staging folder of sdoslam's");
   const fs::path staging = out / staging_name;
@@ -258,7 +260,11 @@ ResultSetWriter::ResultSetWriter(fs::path out) : out_(std::move(out)) {
 
   staging_ = out_ / (std::string(kStagingPrefix) + std::to_string(::getpid()));
   fs::create_directory(staging_, ec);
-  if (ec) throw IoError("cannot create " + staging_.string() + ": " + ec.message());
+  if (ec) {
+    ::close(lock_fd_);  // the destructor does not run for a constructor that throws
+    lock_fd_ = -1;
+    throw IoError("cannot create " + staging_.string() + ": " + ec.message());
+  }
 }
 
 ResultSetWriter::~ResultSetWriter() {
@@ -412,8 +418,9 @@ void FinishCutOffCommitForReader(const fs::path& out) {
   std::error_code ec;
   if (!fs::exists(fs::symlink_status(out / kJournalName, ec))) return;
   const int fd = ::open(out.c_str(), O_DIRECTORY | O_RDONLY | O_CLOEXEC);
-  if (fd < 0 || ::flock(fd, LOCK_EX | LOCK_NB) != 0) {
-    if (fd >= 0) ::close(fd);
+  if (fd < 0) throw Error("cannot open " + out.string() + ": " + ErrnoText());
+  if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    ::close(fd);
     throw Error(out.string() +
                 ": a run is committing its results into this folder; read them "
                 "when it has ended");

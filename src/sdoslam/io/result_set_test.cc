@@ -135,6 +135,28 @@ TEST(ResultSet, AManifestOrResultThatIsNoRegularFileIsRefusedAtOnce) {
   EXPECT_THAT(MessageOf([&] { VerifyResultSet(out); }), HasSubstr("not a regular file"));
 }
 
+TEST(ResultSet, ADamagedJournalIsNamedNotFollowed) {
+  TempDir dir;
+  const fs::path out = dir / "out";
+  {
+    ResultSetWriter writer(out);
+    writer.WriteText("frames.csv", "rows");
+    writer.Commit("complete", {});
+  }
+  for (const std::string& journal :
+       {std::string("{\"format\": \"sdoslam result commit\"}"),
+        std::string("{\"format\": \"sdoslam result commit\", \"staging\": \"../../etc\", "
+                    "\"stale\": []}"),
+        std::string("not json")}) {
+    WriteText(out / ".sdoslam-commit.json", journal);
+    const std::string message = MessageOf([&] { VerifyResultSet(out); });
+    EXPECT_TRUE(message.find("is damaged") != std::string::npos ||
+                message.find("names no staging folder") != std::string::npos)
+        << message;
+    EXPECT_EQ(ReadText(out / "frames.csv"), "rows");
+  }
+}
+
 TEST(ResultSet, AMasksFolderThatLinksElsewhereIsNeverWrittenThroughNorEmptied) {
   TempDir dir;
   const fs::path out = dir / "out";
