@@ -29,6 +29,18 @@ int CountStaging(const fs::path& out) {
   return n;
 }
 
+// Writes `files` (path in the set -> content) as a result set in `out` and commits it complete;
+// with kill_at_step, the process kills itself at that step of the commit (the crash tests).
+void CommitSet(const fs::path& out, const std::map<std::string, std::string>& files,
+               int kill_at_step = 0) {
+  ResultSetWriter writer(out);
+  for (const auto& [path, content] : files) writer.WriteText(path, content);
+  writer.SetStepHookForTesting([kill_at_step](int step) {
+    if (step == kill_at_step) ::raise(SIGKILL);
+  });
+  writer.Commit("complete", {});
+}
+
 TEST(Sha256, MatchesTheStandardTestVector) {
   TempDir dir;
   WriteText(dir / "abc", "abc");  // FIPS 180-2, appendix B.1
@@ -61,14 +73,10 @@ TEST(ResultSet, CommitPutsEveryFileInPlaceWithAManifestThatVerifies) {
 TEST(ResultSet, ARerunReplacesTheOldSetAsAWholeStaleFilesIncluded) {
   TempDir dir;
   const fs::path out = dir / "out";
-  {
-    ResultSetWriter writer(out);
-    writer.WriteText("frames.csv", "old");
-    writer.WriteText("masks/0001.png", "old mask 1");
-    writer.WriteText("masks/0002.png", "old mask 2");
-    writer.WriteText("overlays/0001.png", "old overlay");
-    writer.Commit("complete", {});
-  }
+  CommitSet(out, {{"frames.csv", "old"},
+                  {"masks/0001.png", "old mask 1"},
+                  {"masks/0002.png", "old mask 2"},
+                  {"overlays/0001.png", "old overlay"}});
   WriteText(out / "notes.txt", "the user's own file");
   {
     ResultSetWriter writer(out);
@@ -101,20 +109,11 @@ TEST(ResultSet, FilesItDidNotWriteAreNeverReplacedOrRemoved) {
   EXPECT_EQ(CountStaging(out), 0);
   // Names the new set does not write are left alone, in `masks/` too.
   fs::remove(out / "frames.csv");
-  {
-    ResultSetWriter writer(out);
-    writer.WriteText("frames.csv", "new");
-    writer.WriteText("masks/0001.png", "new");
-    writer.Commit("complete", {});
-  }
+  CommitSet(out, {{"frames.csv", "new"}, {"masks/0001.png", "new"}});
   EXPECT_EQ(ReadText(out / "features.csv"), "the user's");
   EXPECT_EQ(ReadText(out / "masks/0009.png"), "the user's");
   // And a rerun that writes no masks removes its own, not the user's.
-  {
-    ResultSetWriter writer(out);
-    writer.WriteText("frames.csv", "newer");
-    writer.Commit("complete", {});
-  }
+  CommitSet(out, {{"frames.csv", "newer"}});
   EXPECT_FALSE(fs::exists(out / "masks/0001.png"));
   EXPECT_EQ(ReadText(out / "masks/0009.png"), "the user's");
 }
@@ -122,11 +121,7 @@ TEST(ResultSet, FilesItDidNotWriteAreNeverReplacedOrRemoved) {
 TEST(ResultSet, AManifestOrResultThatIsNoRegularFileIsRefusedAtOnce) {
   TempDir dir;
   const fs::path out = dir / "out";
-  {
-    ResultSetWriter writer(out);
-    writer.WriteText("frames.csv", "rows");
-    writer.Commit("complete", {});
-  }
+  CommitSet(out, {{"frames.csv", "rows"}});
   fs::remove(out / "frames.csv");
   ASSERT_EQ(::mkfifo((out / "frames.csv").c_str(), 0644), 0);
   EXPECT_THAT(MessageOf([&] { VerifyResultSet(out); }), HasSubstr("not a regular file"));
@@ -138,11 +133,7 @@ TEST(ResultSet, AManifestOrResultThatIsNoRegularFileIsRefusedAtOnce) {
 TEST(ResultSet, ADamagedJournalIsNamedNotFollowed) {
   TempDir dir;
   const fs::path out = dir / "out";
-  {
-    ResultSetWriter writer(out);
-    writer.WriteText("frames.csv", "rows");
-    writer.Commit("complete", {});
-  }
+  CommitSet(out, {{"frames.csv", "rows"}});
   for (const std::string& journal :
        {std::string("{\"format\": \"sdoslam result commit\"}"),
         std::string("{\"format\": \"sdoslam result commit\", \"staging\": \"../../etc\", "
@@ -162,12 +153,7 @@ TEST(ResultSet, AMasksFolderThatLinksElsewhereIsNeverWrittenThroughNorEmptied) {
   const fs::path out = dir / "out";
   WriteText(dir / "photos" / "0001.png", "a photo");
   WriteText(dir / "photos" / "holiday.png", "another");
-  {
-    ResultSetWriter writer(out);
-    writer.WriteText("frames.csv", "old");
-    writer.WriteText("masks/0001.png", "old mask");
-    writer.Commit("complete", {});
-  }
+  CommitSet(out, {{"frames.csv", "old"}, {"masks/0001.png", "old mask"}});
   fs::remove_all(out / "masks");
   fs::create_directory_symlink(dir / "photos", out / "masks");
   {
@@ -176,11 +162,8 @@ TEST(ResultSet, AMasksFolderThatLinksElsewhereIsNeverWrittenThroughNorEmptied) {
     writer.WriteText("masks/0001.png", "new mask");
     EXPECT_THAT(MessageOf([&] { writer.Commit("complete", {}); }), HasSubstr("symbolic link"));
   }
-  {
-    ResultSetWriter writer(out);  // no masks this time: the old set's masks/0001.png is stale
-    writer.WriteText("frames.csv", "new");
-    writer.Commit("complete", {});
-  }
+  // No masks this time: the old set's masks/0001.png is stale.
+  CommitSet(out, {{"frames.csv", "new"}});
   EXPECT_EQ(ReadText(dir / "photos" / "0001.png"), "a photo");
   EXPECT_EQ(ReadText(dir / "photos" / "holiday.png"), "another");
   EXPECT_TRUE(fs::is_symlink(out / "masks"));
@@ -189,13 +172,9 @@ TEST(ResultSet, AMasksFolderThatLinksElsewhereIsNeverWrittenThroughNorEmptied) {
 TEST(ResultSet, AFolderInPlaceOfAResultFileIsRefusedBeforeTheOldSetIsTouched) {
   TempDir dir;
   const fs::path out = dir / "out";
-  {
-    ResultSetWriter writer(out);
-    writer.WriteText("CameraTrajectory.txt", "old trajectory");
-    writer.WriteText("mapping.csv", "old mapping");
-    writer.WriteText("loops.csv", "old loops");
-    writer.Commit("complete", {});
-  }
+  CommitSet(out, {{"CameraTrajectory.txt", "old trajectory"},
+                  {"mapping.csv", "old mapping"},
+                  {"loops.csv", "old loops"}});
   fs::remove(out / "loops.csv");
   fs::create_directory(out / "loops.csv");
   {
@@ -215,11 +194,7 @@ TEST(ResultSet, AFolderInPlaceOfAResultFileIsRefusedBeforeTheOldSetIsTouched) {
 TEST(ResultSet, WithoutCommitTheOldSetStaysUntouchedAndNoStagingIsLeft) {
   TempDir dir;
   const fs::path out = dir / "out";
-  {
-    ResultSetWriter writer(out);
-    writer.WriteText("frames.csv", "old");
-    writer.Commit("complete", {});
-  }
+  CommitSet(out, {{"frames.csv", "old"}});
   {
     ResultSetWriter writer(out);
     writer.WriteText("frames.csv", "half of a new run");
@@ -254,16 +229,6 @@ const std::map<std::string, std::string> kNewSet = {{"CameraTrajectory.txt", "ne
                                                     {"frames.csv", "new frames"},
                                                     {"loops.csv", "new loops"},
                                                     {"masks/0001.png", "new mask 1"}};
-
-void CommitSet(const fs::path& out, const std::map<std::string, std::string>& files,
-               int kill_at_step = 0) {
-  ResultSetWriter writer(out);
-  for (const auto& [path, content] : files) writer.WriteText(path, content);
-  writer.SetStepHookForTesting([kill_at_step](int step) {
-    if (step == kill_at_step) ::raise(SIGKILL);
-  });
-  writer.Commit("complete", {});
-}
 
 // What the manifest vouches for, read back: relative path -> content.
 std::map<std::string, std::string> VerifiedSet(const fs::path& out) {
@@ -333,12 +298,7 @@ TEST(ResultSet, AStagingFolderOfACutOffRunIsRefusedByReadersAndRemovedByTheNextR
 TEST(ResultSet, AFileChangedAfterTheCommitIsRefusedNamingIt) {
   TempDir dir;
   const fs::path out = dir / "out";
-  {
-    ResultSetWriter writer(out);
-    writer.WriteText("CameraTrajectory.txt", "1 0 0 0 0 0 0 1\n");
-    writer.WriteText("frames.csv", "index\n");
-    writer.Commit("complete", {});
-  }
+  CommitSet(out, {{"CameraTrajectory.txt", "1 0 0 0 0 0 0 1\n"}, {"frames.csv", "index\n"}});
   EXPECT_TRUE(VerifyResultFile(out / "CameraTrajectory.txt").has_value());
   WriteText(out / "CameraTrajectory.txt", "2 0 0 0 0 0 0 1\n");  // same size, other content
   EXPECT_THAT(MessageOf([&] { VerifyResultSet(out); }), HasSubstr("CameraTrajectory.txt: differs"));

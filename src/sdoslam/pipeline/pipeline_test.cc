@@ -63,6 +63,15 @@ std::filesystem::path WriteScenario(const std::string& scenario, const testing::
   return sequence;
 }
 
+// The colour images of a sequence written by WriteShortWalk, in frame order.
+std::vector<std::filesystem::path> ColourImages(const std::filesystem::path& sequence) {
+  std::vector<std::filesystem::path> rgb;
+  for (const auto& e : std::filesystem::directory_iterator(sequence / "rgb"))
+    rgb.push_back(e.path());
+  std::sort(rgb.begin(), rgb.end());
+  return rgb;
+}
+
 ModeResults RunAllModes(const std::string& scenario, const testing::TempDir& dir) {
   const auto sequence = WriteScenario(scenario, dir);
   ModeResults r;
@@ -966,10 +975,7 @@ TEST(PipelineStages, PreparingAheadGivesTheInlineRunsTrajectoryBitForBit) {
 TEST(PipelineStages, AnUnreadableFrameInThePreparingThreadReachesTheCaller) {
   testing::TempDir dir;
   const auto sequence = WriteShortWalk(dir, 30);
-  std::vector<std::filesystem::path> rgb;
-  for (const auto& e : std::filesystem::directory_iterator(sequence / "rgb"))
-    rgb.push_back(e.path());
-  std::sort(rgb.begin(), rgb.end());
+  const std::vector<std::filesystem::path> rgb = ColourImages(sequence);
   ASSERT_EQ(rgb.size(), 30u);
   { std::ofstream(rgb[12], std::ios::trunc) << "not a png"; }
   for (bool sequential_mapping : {true, false}) {
@@ -1036,10 +1042,7 @@ TEST(PipelineStages, AStopDuringTheLastFrameMarksTheRunInterrupted) {
 TEST(PipelineStages, AnImageSwappedForAFifoMidRunIsNamedInsteadOfWaitedFor) {
   testing::TempDir dir;
   const auto sequence = WriteShortWalk(dir, 12);
-  std::vector<std::filesystem::path> rgb;
-  for (const auto& e : std::filesystem::directory_iterator(sequence / "rgb"))
-    rgb.push_back(e.path());
-  std::sort(rgb.begin(), rgb.end());
+  const std::vector<std::filesystem::path> rgb = ColourImages(sequence);
   ASSERT_EQ(rgb.size(), 12u);
   const std::filesystem::path image = rgb[9], kept = dir / "kept.png";
   std::filesystem::copy_file(image, kept);
