@@ -31,6 +31,7 @@ void LocalMapperOptions::Check(const std::string& path) const {
   if (max_ba_observations < 1) throw Error(path + "max_ba_observations must be >= 1");
   if (triangulation_neighbours < 1) throw Error(path + "triangulation_neighbours must be >= 1");
   if (max_queued_keyframes < 1) throw Error(path + "max_queued_keyframes must be >= 1");
+  if (max_tracking_lead < 0) throw Error(path + "max_tracking_lead must be >= 0");
   if (min_frames_between_local_ba < 0)
     throw Error(path + "min_frames_between_local_ba must be >= 0");
   bundle_adjustment.Check(path + "bundle_adjustment.");

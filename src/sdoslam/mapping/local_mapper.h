@@ -58,6 +58,13 @@ struct LocalMapperOptions {
   BundleAdjustmentOptions bundle_adjustment;
   // Threaded mapping (System): tracking makes no keyframe while this many wait for local mapping.
   int max_queued_keyframes = 3;
+  // Threaded mapping: tracking waits before frame k while local mapping has not finished a
+  // keyframe made before frame k − max_tracking_lead (0: never waits). Read from files, tracking
+  // outruns mapping: it tracks a frame in 10-20 ms where a camera gives one every 33, mapping a
+  // keyframe takes 30-60 ms, and on fast hand-held motion tracking then leans on a map that lags
+  // behind the view, skips keyframes while mapping is busy and stops its bundle adjustments.
+  // A camera gives mapping that time; so does this bound, without sleeping when mapping keeps up.
+  int max_tracking_lead = 1;
   // Threaded mapping: a keyframe that arrives while local BA solves stops it after the iteration
   // under way (its solution so far is kept), and a keyframe already waiting when the BA would
   // start skips it, as ORB-SLAM2's local mapping does: the next keyframe's BA covers nearly the
@@ -92,6 +99,7 @@ struct LocalMapperOptions {
     visit("max_ba_observations", o.max_ba_observations);
     visit("bundle_adjustment", o.bundle_adjustment);
     visit("max_queued_keyframes", o.max_queued_keyframes);
+    visit("max_tracking_lead", o.max_tracking_lead);
     visit("stop_ba_for_new_keyframe", o.stop_ba_for_new_keyframe);
     visit("min_frames_between_local_ba", o.min_frames_between_local_ba);
   }

@@ -333,6 +333,9 @@ RunSummary RunOnDataset(const RunOptions& options) {
   const RgbdDataset dataset(options.dataset, options.camera, dataset_options);
   RunOptions run = options;
   run.camera = dataset.camera();  // with intrinsics from the dataset where the config asks
+  // A live camera cannot be made to wait for local mapping: at its rate tracking never does
+  // (mapping.max_tracking_lead bounds a run that reads its files as fast as it tracks them).
+  if (run.camera_rate) run.slam.mapping.max_tracking_lead = 0;
   RunSummary summary;
   summary.requested =
       run.max_frames > 0 ? std::min(dataset.size(), run.max_frames) : dataset.size();

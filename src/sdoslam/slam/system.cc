@@ -4,6 +4,7 @@
 #include <spdlog/spdlog.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <optional>
@@ -106,6 +107,7 @@ void System::Shutdown() {
     stop_ = true;
   }
   queue_changed_.notify_all();
+  mapping_done_.notify_all();
   if (mapping_thread_.joinable()) mapping_thread_.join();
   // Loop closing after mapping: the keyframes mapping finished last still get their look.
   {
@@ -166,6 +168,7 @@ void System::MappingLoop() {
       queue_.pop_front();
       keyframe_waiting_ = !queue_.empty();
       mapping_busy_ = true;
+      mapping_frame_ = keyframe->frame.index;
     }
     const StageClock clock;
     const MappingResult result = mapper_->Process(keyframe, &map_mutex_, &keyframe_waiting_);
@@ -177,6 +180,7 @@ void System::MappingLoop() {
           {.frame_index = keyframe->frame.index, .ms = ms, .cpu_ms = cpu_ms, .result = result});
       loop_queue_.push_back(keyframe);
     }
+    mapping_done_.notify_all();
     loop_queue_changed_.notify_one();
   }
 }
@@ -255,10 +259,30 @@ void System::AddDynamicInputs(PreparedFrame* prepared, const cv::Mat& dynamic_la
   prepared->features_ms += MsSince(start);
 }
 
+void System::WaitForMapping(size_t index, FrameTiming* timing) {
+  if (options_.sequential) return;
+  const size_t lead = static_cast<size_t>(options_.mapping.max_tracking_lead);
+  const auto start = std::chrono::steady_clock::now();
+  std::unique_lock<std::mutex> lock(queue_mutex_);
+  // Keyframes are mapped in the order they were made: the oldest unfinished one is the one under
+  // way, else the queue's first.
+  const auto oldest_unmapped = [&] {
+    if (mapping_busy_) return mapping_frame_;
+    return queue_.empty() ? index : queue_.front()->frame.index;
+  };
+  if (lead > 0) {
+    mapping_done_.wait(lock, [&] { return stop_ || oldest_unmapped() + lead >= index; });
+  }
+  timing->mapping_lag_frames = index - std::min(index, oldest_unmapped());
+  timing->lock_wait_ms += MsSince(start);
+}
+
 TrackingResult System::Track(PreparedFrame&& prepared, FrameTiming* timing) {
   FrameTiming t;
   t.features_ms = prepared.features_ms;
   auto start = std::chrono::steady_clock::now();
+  // Counted as waiting for the map: like the map lock, it is time the frame waits on mapping.
+  WaitForMapping(prepared.frame.index, &t);
   KeyFrame* keyframe = nullptr;
   bool idle = true, accepts = true;
   if (!options_.sequential) {
@@ -270,7 +294,7 @@ TrackingResult System::Track(PreparedFrame&& prepared, FrameTiming* timing) {
   {
     const auto wait_start = std::chrono::steady_clock::now();
     std::unique_lock<std::mutex> lock(map_mutex_);
-    t.lock_wait_ms = MsSince(wait_start);
+    t.lock_wait_ms += MsSince(wait_start);
     // Cleared however the frame ends, an exception included, or loop correction would wait for
     // ever.
     struct InFrame {

@@ -81,6 +81,10 @@ void WriteSlamOptions(const SlamOptions& options, YAML::Emitter* out);
 struct FrameTiming {
   double features_ms = 0, tracking_ms = 0, mapping_ms = 0;
   double lock_wait_ms = 0;  // of tracking_ms: waiting for the map while local mapping held it
+  // Threaded: how many frames before this one the oldest keyframe was made that local mapping
+  // had not finished when this frame was tracked (0: none; at most mapping.max_tracking_lead
+  // when that bounds it).
+  size_t mapping_lag_frames = 0;
 };
 
 // Local mapping of one keyframe.
@@ -172,6 +176,10 @@ class System {
   void MappingLoop();
   void LoopLoop();
   void CloseLoops(KeyFrame* keyframe);
+  // Threaded: waits until local mapping has finished every keyframe made more than
+  // mapping.max_tracking_lead frames before frame `index`. Adds the wait to
+  // timing->lock_wait_ms and sets timing->mapping_lag_frames.
+  void WaitForMapping(size_t index, FrameTiming* timing);
 
   SlamOptions options_;
   OrbExtractor extractor_;
@@ -192,6 +200,9 @@ class System {
   std::condition_variable queue_changed_;
   std::deque<KeyFrame*> queue_;
   bool mapping_busy_ = false;
+  size_t mapping_frame_ = 0;  // the frame of the keyframe local mapping works on, while busy
+  // Local mapping finished a keyframe: tracking may wait for it (mapping.max_tracking_lead).
+  std::condition_variable mapping_done_;
   // Whether a keyframe waits in queue_ (kept with it under queue_mutex_): stops local BA.
   std::atomic<bool> keyframe_waiting_{false};
   bool stop_ = false;

@@ -151,6 +151,9 @@ TEST(SlamThreaded, ANewKeyFrameStopsOrSkipsLocalBundleAdjustmentUnlessTurnedOff)
     options.tracking.min_close_points = 100000;  // a keyframe asked for at every frame
     options.tracking.close_points_to_create = 0;
     options.mapping.stop_ba_for_new_keyframe = stop_for_new_keyframe;
+    // Tracking does not wait for mapping, as at a live camera's rate: with the lead bounded it
+    // waits before the keyframe that would stop the BA.
+    options.mapping.max_tracking_lead = 0;
     // Every keyframe is due a BA, so that each one skipped or stopped gave way to a new keyframe
     // (with keyframes on consecutive frames, the spacing would skip two in three).
     options.mapping.min_frames_between_local_ba = 0;
@@ -173,6 +176,47 @@ TEST(SlamThreaded, ANewKeyFrameStopsOrSkipsLocalBundleAdjustmentUnlessTurnedOff)
   const GaveWay off = run(false);
   EXPECT_GT(off.keyframes, 5u);
   EXPECT_EQ(off.stopped + off.skipped, 0u);
+}
+
+// Threaded, tracking runs at most mapping.max_tracking_lead frames ahead of the oldest keyframe
+// local mapping has not finished. Here every tracked frame asks for a keyframe and the frames,
+// loaded beforehand, are fed as fast as tracking takes them, so that tracking (milliseconds a
+// frame) would outrun local mapping (tens of milliseconds a keyframe).
+TEST(SlamThreaded, TrackingRunsNoFurtherAheadOfLocalMappingThanTheLeadAllows) {
+  testing::TempDir dir;
+  RenderStaticRoom(dir, synth::CameraMotion::kXyz, 40);
+  const TumDataset dataset(dir / "seq", synth::SyntheticCamera());
+  std::vector<RgbdFrame> frames;
+  for (size_t i = 0; i < dataset.size(); ++i) frames.push_back(dataset.Load(i));
+  struct Lag {
+    size_t largest = 0, keyframes = 0;
+  };
+  const auto run = [&](int lead) {
+    SlamOptions options;
+    options.sequential = false;
+    options.tracking.min_close_points = 100000;  // a keyframe asked for at every frame
+    options.tracking.close_points_to_create = 0;
+    options.mapping.max_tracking_lead = lead;
+    System slam(synth::SyntheticCamera(), options);
+    Lag lag;
+    for (size_t i = 0; i < frames.size(); ++i) {
+      FrameTiming timing;
+      const TrackingResult r =
+          slam.TrackRgbd(i, frames[i].timestamp, frames[i].bgr, frames[i].depth, &timing);
+      EXPECT_EQ(r.state, TrackingState::kOk) << "frame " << i;
+      lag.largest = std::max(lag.largest, timing.mapping_lag_frames);
+      lag.keyframes += r.keyframe;
+    }
+    slam.Shutdown();
+    return lag;
+  };
+  const Lag free_running = run(0);
+  EXPECT_GT(free_running.largest, 1u);  // else the bound below shows nothing
+  for (const int lead : {1, 3}) {
+    const Lag bounded = run(lead);
+    EXPECT_LE(bounded.largest, static_cast<size_t>(lead)) << "lead " << lead;
+    EXPECT_GT(bounded.keyframes, 10u) << "lead " << lead;
+  }
 }
 
 TEST(SlamRobustness, UntrackableFrameIsLostAndTheRunGoesOn) {
