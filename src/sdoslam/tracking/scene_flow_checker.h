@@ -68,9 +68,66 @@ class SceneFlowChecker {
     bool tracked;
   };
 
+  // A correspondence of the check: each end as a ray in the world frame and the depths it may
+  // have along it (the depths within depth_window_radius of its pixel).
+  struct Ends {
+    Eigen::Vector3d past_origin, past_direction, current_direction;
+    std::vector<float> past_depths, current_depths;
+  };
+  // The features still taken as static (the candidates), followed back into a past frame.
+  struct Correspondences {
+    std::vector<int> candidates;         // feature indices
+    std::vector<uint8_t> measured;       // per candidate: followed back, with depth at both ends
+    std::vector<Ends> ends;              // per candidate, where measured
+    std::vector<int> segment;            // per candidate: its segment (SegmentsAt)
+    const LkPyramid* current = nullptr;  // the current frame's pyramid
+  };
+  // The static world's motion (static_motion.h): the grid samples that vote in the segment rule
+  // beside the features, and the candidates that motion does not explain.
+  struct StaticWorld {
+    std::vector<Ends> sample_ends;
+    std::vector<int> sample_segment;
+    std::vector<uint8_t> off_static_motion;  // per candidate
+  };
+
   // The earliest remembered tracked frame before frame `index` (frame index − frame_gap when
   // all were tracked); null when there is none.
   const PastFrame* TrackedPastFrame(size_t index) const;
+  // The steps of CheckSceneFlow. Follows the candidates back into `past` by Lucas–Kanade (those
+  // lost over frame_gap frames are tried again over retry_gap) and makes their ends.
+  Correspondences FollowFeaturesBack(const Frame& frame, const ConsistencyInput& input,
+                                     const PastFrame& past, MapLockReleaser& map_lock);
+  // FollowFeaturesBack's second try: the candidates in `tracked_points` (slots `tracked_slot`)
+  // that were not `found` in `past`, followed back retry_gap frames instead.
+  void RetryOverNearPast(const Frame& frame, const ConsistencyInput& input, const PastFrame& past,
+                         const std::vector<cv::Point2f>& tracked_points,
+                         const std::vector<size_t>& tracked_slot, const std::vector<uint8_t>& found,
+                         MapLockReleaser& map_lock, Correspondences* features);
+  // The measured candidates whose past end, at any of its depths, the frame's pose does not
+  // project within `limit_px` of the feature.
+  std::vector<uint8_t> UnexplainedByPose(const Frame& frame, const Correspondences& features,
+                                         double limit_px) const;
+  // Finds the static world's motion from the grid samples; where it explains more of the image
+  // than tracking's pose it replaces it (result->check_replaced), and the candidates it does not
+  // explain are moving.
+  StaticWorld FindStaticWorld(Frame& frame, const ConsistencyInput& input, const PastFrame& past,
+                              const Correspondences& features, MapLockReleaser& map_lock,
+                              TrackingResult* result) const;
+  // Classifies the candidates at the frame's pose, re-estimates the pose without the dynamic
+  // ones (their matches, from `matched`, dropped) and repeats until the dynamic set stops
+  // growing. Returns it, per candidate; `segment_dynamic`: the segments turned dynamic.
+  std::vector<uint8_t> ClassifyUntilSettled(Frame& frame, const ConsistencyInput& input,
+                                            const Correspondences& features,
+                                            const StaticWorld& world,
+                                            const std::vector<MapPoint*>& matched,
+                                            const RefinePose& refine_pose, TrackingResult* result,
+                                            std::vector<uint8_t>* segment_dynamic) const;
+  // The ends of a correspondence from `past_pixel` (undistorted: `past_undistorted`) in
+  // `earlier` to `pixel` (`undistorted`) in the current frame, whose depth is `current_depth`.
+  // False when either depth window has no depth.
+  bool MakeEnds(const Camera& camera, const PastFrame& earlier, const cv::Mat& current_depth,
+                const cv::Point2f& past_pixel, const cv::Point2f& past_undistorted,
+                const cv::Point2f& pixel, const cv::Point2f& undistorted, Ends* ends) const;
   // The current frame's pyramid, built once by CheckSceneFlow and handed to RememberFrame.
   const LkPyramid& CurrentPyramid(size_t index, const cv::Mat& gray);
 
