@@ -41,9 +41,7 @@ TrackingResult Tracker::Track(Frame frame, KeyFrame** new_keyframe, bool mapping
   return result;
 }
 
-TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool mapping_idle,
-                                   bool mapping_accepts, const ConsistencyInput* consistency) {
-  if (!options_.consistency.enabled) consistency = nullptr;
+void Tracker::FollowMapChanges() {
   // Local mapping may have culled the reference keyframe: its features are gone, its parent
   // (never culled) stands in for it.
   while (reference_ != nullptr && reference_->bad) reference_ = reference_->parent;
@@ -56,39 +54,31 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
     if (last_frame_ != nullptr) last_frame_->T_camera_world = last_frame_->T_camera_world * change;
     checker_.CorrectPoses(change);
   }
-  *new_keyframe = nullptr;
-  ++frame_stamp_;
-  TrackingResult result;
-  result.index = frame.index;
-  result.timestamp = frame.timestamp;
-  result.features = static_cast<int>(frame.size());
-  for (size_t i = 0; i < frame.size(); ++i)
-    result.features_with_depth += frame.HasDepth(static_cast<int>(i));
-  result.feature_labels = frame.label;
-  result.feature_points.reserve(frame.size());
-  for (const cv::KeyPoint& k : frame.keypoints) result.feature_points.push_back(k.pt);
+}
 
-  if (state_ == TrackingState::kNotInitialized) {
-    KeyFrame* first = InitializeMap(map_, options_, frame);
-    if (first != nullptr) {
-      reference_ = first;
-      last_keyframe_frame_ = frame.index;
-      state_ = TrackingState::kOk;
-      result.keyframe = true;
-      *new_keyframe = first;
-      result.inliers = first->TrackedPoints(1);
-    }
-    result.state = state_;
-    trajectory_.push_back({frame.timestamp, state_ == TrackingState::kOk ? reference_ : nullptr,
-                           Eigen::Isometry3d::Identity()});
-    if (state_ == TrackingState::kOk) last_frame_ = std::make_unique<Frame>(first->frame);
-    if (consistency != nullptr) {
-      checker_.RememberFrame(frame.index, state_ == TrackingState::kOk,
-                             Eigen::Isometry3d::Identity(), *consistency);
-    }
-    return result;
+TrackingResult Tracker::Initialize(Frame& frame, KeyFrame** new_keyframe,
+                                   const ConsistencyInput* consistency, TrackingResult result) {
+  KeyFrame* first = InitializeMap(map_, options_, frame);
+  if (first != nullptr) {
+    reference_ = first;
+    last_keyframe_frame_ = frame.index;
+    state_ = TrackingState::kOk;
+    result.keyframe = true;
+    *new_keyframe = first;
+    result.inliers = first->TrackedPoints(1);
   }
+  result.state = state_;
+  trajectory_.push_back({frame.timestamp, state_ == TrackingState::kOk ? reference_ : nullptr,
+                         Eigen::Isometry3d::Identity()});
+  if (state_ == TrackingState::kOk) last_frame_ = std::make_unique<Frame>(first->frame);
+  if (consistency != nullptr) {
+    checker_.RememberFrame(frame.index, state_ == TrackingState::kOk, Eigen::Isometry3d::Identity(),
+                           *consistency);
+  }
+  return result;
+}
 
+bool Tracker::TrackPose(Frame& frame, TrackingResult* result) {
   bool ok = false;
   if (state_ == TrackingState::kOk) {
     MakeTemporaryPoints();
@@ -104,7 +94,7 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
     ok = relocalizer_.Relocalize(frame, RelocalizationPrior(), &reference_, &frame_stamp_,
                                  Refiner());
   }
-  if (ok) ok = TrackLocalMap(frame, &result);
+  if (ok) ok = TrackLocalMap(frame, result);
   if (!ok && state_ == TrackingState::kOk) {
     // Before calling a tracked camera lost: the wide search around the prediction. The frame
     // after a relocalization has no velocity and only the reference keyframe's descriptors to
@@ -112,19 +102,15 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
     // (synthetic loop, threaded: a frame with 48 % of the room in view lost right after one
     // relocalized at 23 %). The failed TrackLocalMap has already counted its points as visible
     // and found; on this rare path they are counted twice for the frame.
-    result.matches = 0;
+    result->matches = 0;
     ok = relocalizer_.RelocalizeNearPrediction(frame, RelocalizationPrior(), &frame_stamp_,
                                                Refiner()) &&
-         TrackLocalMap(frame, &result);
+         TrackLocalMap(frame, result);
   }
-  // Whether this frame's features were judged for scene flow (or need not be).
-  const bool judged = consistency == nullptr || checker_.CanJudge(frame.index);
-  if (ok && consistency != nullptr) {
-    const std::vector<MapPoint*> judged_dynamic =
-        checker_.CheckSceneFlow(frame, *consistency, Refiner(), map_lock_, &result);
-    checker_.CheckLandmarks(frame, *consistency, judged_dynamic, local_points_, &result);
-    result.feature_labels = frame.label;
-  }
+  return ok;
+}
+
+void Tracker::DropTemporaryPoints(Frame& frame, TrackingResult* result) {
   // Drop the temporary points (no observations) and outliers from this frame, and the
   // temporaries from the last frame, before the temporaries are freed.
   for (size_t i = 0; i < frame.size(); ++i) {
@@ -135,9 +121,68 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
     if (p != nullptr && p->observations.empty()) p = nullptr;
   }
   temporary_points_.clear();
-  result.feature_tracked.assign(frame.size(), 0);
+  result->feature_tracked.assign(frame.size(), 0);
   for (size_t i = 0; i < frame.size(); ++i)
-    result.feature_tracked[i] = frame.map_points[i] != nullptr;
+    result->feature_tracked[i] = frame.map_points[i] != nullptr;
+}
+
+void Tracker::DecideKeyFrame(Frame& frame, const KeyFrameChoice& choice, KeyFrame** new_keyframe,
+                             TrackingResult* result) {
+  // Enough of the static world in view to vouch for the pose, on this frame or the one before
+  // it (see TrackerOptions).
+  const bool narrow_static_view =
+      choice.consistency != nullptr && options_.consistency.static_motion.enabled &&
+      result->check_static_samples < options_.keyframes_min_static_samples &&
+      StaticFeaturesWithDepth(frame) < options_.keyframes_min_static_features;
+  const bool static_view_vouches = !narrow_static_view || !last_narrow_static_view_;
+  last_narrow_static_view_ = narrow_static_view;
+  result->reference_matches = ReferenceMatches(*map_, *reference_);
+  const ClosePoints close = CountClosePoints(frame);
+  result->close_tracked = close.tracked;
+  result->close_untracked = close.untracked;
+  if (choice.mapping_accepts && (choice.judged || !options_.keyframes_only_from_judged_frames) &&
+      static_view_vouches &&
+      NeedKeyFrame(options_, frame,
+                   {.inliers = result->inliers,
+                    .reference_matches = result->reference_matches,
+                    .last_keyframe_frame = last_keyframe_frame_,
+                    .mapping_idle = choice.mapping_idle,
+                    .good_keyframes = map_->GoodKeyFrames()})) {
+    *new_keyframe = CreateKeyFrame(map_, options_, frame);
+    reference_ = *new_keyframe;
+    last_keyframe_frame_ = frame.index;
+    result->keyframe = true;
+  }
+}
+
+TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool mapping_idle,
+                                   bool mapping_accepts, const ConsistencyInput* consistency) {
+  if (!options_.consistency.enabled) consistency = nullptr;
+  FollowMapChanges();
+  *new_keyframe = nullptr;
+  ++frame_stamp_;
+  TrackingResult result;
+  result.index = frame.index;
+  result.timestamp = frame.timestamp;
+  result.features = static_cast<int>(frame.size());
+  for (size_t i = 0; i < frame.size(); ++i)
+    result.features_with_depth += frame.HasDepth(static_cast<int>(i));
+  result.feature_labels = frame.label;
+  result.feature_points.reserve(frame.size());
+  for (const cv::KeyPoint& k : frame.keypoints) result.feature_points.push_back(k.pt);
+  if (state_ == TrackingState::kNotInitialized)
+    return Initialize(frame, new_keyframe, consistency, std::move(result));
+
+  bool ok = TrackPose(frame, &result);
+  // Whether this frame's features were judged for scene flow (or need not be).
+  const bool judged = consistency == nullptr || checker_.CanJudge(frame.index);
+  if (ok && consistency != nullptr) {
+    const std::vector<MapPoint*> judged_dynamic =
+        checker_.CheckSceneFlow(frame, *consistency, Refiner(), map_lock_, &result);
+    checker_.CheckLandmarks(frame, *consistency, judged_dynamic, local_points_, &result);
+    result.feature_labels = frame.label;
+  }
+  DropTemporaryPoints(frame, &result);
 
   result.relocalized = ok && state_ == TrackingState::kLost;
   state_ = ok ? TrackingState::kOk : TrackingState::kLost;
@@ -151,31 +196,12 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
       has_velocity_ = true;
     }
     frames_lost_ = 0;
-    // Enough of the static world in view to vouch for the pose, on this frame or the one
-    // before it (see TrackerOptions).
-    const bool narrow_static_view =
-        consistency != nullptr && options_.consistency.static_motion.enabled &&
-        result.check_static_samples < options_.keyframes_min_static_samples &&
-        StaticFeaturesWithDepth(frame) < options_.keyframes_min_static_features;
-    const bool static_view_vouches = !narrow_static_view || !last_narrow_static_view_;
-    last_narrow_static_view_ = narrow_static_view;
-    result.reference_matches = ReferenceMatches(*map_, *reference_);
-    const ClosePoints close = CountClosePoints(frame);
-    result.close_tracked = close.tracked;
-    result.close_untracked = close.untracked;
-    if (mapping_accepts && (judged || !options_.keyframes_only_from_judged_frames) &&
-        static_view_vouches &&
-        NeedKeyFrame(options_, frame,
-                     {.inliers = result.inliers,
-                      .reference_matches = result.reference_matches,
-                      .last_keyframe_frame = last_keyframe_frame_,
-                      .mapping_idle = mapping_idle,
-                      .good_keyframes = map_->GoodKeyFrames()})) {
-      *new_keyframe = CreateKeyFrame(map_, options_, frame);
-      reference_ = *new_keyframe;
-      last_keyframe_frame_ = frame.index;
-      result.keyframe = true;
-    }
+    DecideKeyFrame(frame,
+                   {.mapping_idle = mapping_idle,
+                    .mapping_accepts = mapping_accepts,
+                    .judged = judged,
+                    .consistency = consistency},
+                   new_keyframe, &result);
     trajectory_.push_back(
         {frame.timestamp, reference_, frame.T_camera_world * reference_->pose().inverse()});
     last_frame_ = std::make_unique<Frame>(result.keyframe ? (*new_keyframe)->frame : frame);

@@ -74,6 +74,29 @@ class Tracker {
  private:
   TrackingResult TrackFrame(Frame frame, KeyFrame** new_keyframe, bool mapping_idle,
                             bool mapping_accepts, const ConsistencyInput* consistency);
+  // The steps of TrackFrame. Follows what local mapping and loop closing did to the map since
+  // the last frame: a culled reference keyframe, a corrected map.
+  void FollowMapChanges();
+  // The first frame: the map from its depth, when it has enough (`result` filled as far as the
+  // frame goes).
+  TrackingResult Initialize(Frame& frame, KeyFrame** new_keyframe,
+                            const ConsistencyInput* consistency, TrackingResult result);
+  // The frame's pose: by the motion model or the reference keyframe (or relocalization when
+  // lost), then against the local map. False when the frame could not be tracked.
+  bool TrackPose(Frame& frame, TrackingResult* result);
+  // Unmatches the temporary points and outliers, frees the temporaries, and records which
+  // features are tracked.
+  void DropTemporaryPoints(Frame& frame, TrackingResult* result);
+  // What the keyframe decision knows besides the frame.
+  struct KeyFrameChoice {
+    bool mapping_idle = true, mapping_accepts = true;
+    bool judged = true;  // the check judged the frame (or there is no check)
+    const ConsistencyInput* consistency = nullptr;
+  };
+  // Makes the tracked frame a keyframe when the map needs one (keyframe_inserter.h) and the
+  // static view vouches for its pose (TrackerOptions).
+  void DecideKeyFrame(Frame& frame, const KeyFrameChoice& choice, KeyFrame** new_keyframe,
+                      TrackingResult* result);
   bool TrackWithMotionModel(Frame& frame);
   bool TrackReferenceKeyFrame(Frame& frame);
   bool TrackLocalMap(Frame& frame, TrackingResult* result);
