@@ -55,6 +55,176 @@ SdoClassifier::SdoClassifier(const SdoClassifierOptions& options) : options_(opt
   options_.Check();
 }
 
+namespace {
+
+// Per segment: area, outline, the outline on a motion boundary (`near_boundary`), and the depth
+// order across the outline (`depth`, at the segments' resolution).
+std::vector<SegmentStats> MeasureSegments(const cv::Mat& seg, int n, const cv::Mat& depth,
+                                          const cv::Mat& near_boundary, double in_front_ratio) {
+  const cv::Size work = seg.size();
+  std::vector<SegmentStats> stats(static_cast<size_t>(n));
+  for (int y = 0; y < work.height; ++y) {
+    const int* row = seg.ptr<int>(y);
+    const float* d = depth.ptr<float>(y);
+    for (int x = 0; x < work.width; ++x) {
+      const int s = row[x];
+      if (s < 0) continue;
+      SegmentStats& st = stats[static_cast<size_t>(s)];
+      ++st.area;
+      if (d[x] > 0) st.depths.push_back(d[x]);
+      bool outline = false;
+      // Right and down neighbours: each pair is visited once and counts for both sides.
+      const int nx[2] = {x + 1, x}, ny[2] = {y, y + 1};
+      for (int k = 0; k < 2; ++k) {
+        if (nx[k] >= work.width || ny[k] >= work.height) continue;
+        const int t = seg.at<int>(ny[k], nx[k]);
+        if (t == s) continue;
+        outline = true;
+        const float dt = depth.at<float>(ny[k], nx[k]);
+        if (t >= 0 && d[x] > 0 && dt > 0) {
+          SegmentStats& other = stats[static_cast<size_t>(t)];
+          ++st.depth_pairs;
+          ++other.depth_pairs;
+          if (dt > d[x] * in_front_ratio) ++st.in_front, ++other.behind;
+          if (d[x] > dt * in_front_ratio) ++other.in_front, ++st.behind;
+        }
+      }
+      // Left and up neighbours only mark this pixel as outline.
+      if (!outline && ((x > 0 && row[x - 1] != s) || (y > 0 && seg.at<int>(y - 1, x) != s)))
+        outline = true;
+      if (outline) {
+        ++st.outline;
+        st.outline_on_boundary += near_boundary.at<uint8_t>(y, x) != 0;
+      }
+    }
+  }
+  for (SegmentStats& st : stats) st.median_depth = Median(&st.depths);
+  return stats;
+}
+
+// The pixels (255) of detection `det`'s object: the segments that best match its box (`scale`:
+// from image to segment resolution) and those mostly inside it at its depth, labelled
+// kKnownMovable in `segment_labels`; the whole box when no segment matches it.
+cv::Mat DetectedObject(const Detection& det, const cv::Mat& seg, int n,
+                       const std::vector<SegmentStats>& stats, double scale,
+                       const SdoClassifierOptions& options, std::vector<uint8_t>* segment_labels) {
+  const cv::Size work = seg.size();
+  cv::Mat member(work, CV_8U, cv::Scalar(0));
+  const cv::Rect box = cv::Rect(cv::Point(static_cast<int>(std::floor(det.box.x * scale)),
+                                          static_cast<int>(std::floor(det.box.y * scale))),
+                                cv::Point(static_cast<int>(std::ceil(det.box.br().x * scale)),
+                                          static_cast<int>(std::ceil(det.box.br().y * scale)))) &
+                       cv::Rect(0, 0, work.width, work.height);
+  if (box.area() <= 0) return member;
+  std::vector<int> inside(static_cast<size_t>(n), 0);
+  for (int y = box.y; y < box.br().y; ++y) {
+    const int* row = seg.ptr<int>(y);
+    for (int x = box.x; x < box.br().x; ++x) {
+      if (row[x] >= 0) ++inside[static_cast<size_t>(row[x])];
+    }
+  }
+  int best = -1;
+  double best_iou = options.min_box_iou;
+  for (int s = 0; s < n; ++s) {
+    const double in = inside[static_cast<size_t>(s)];
+    const double iou = in / (stats[static_cast<size_t>(s)].area + box.area() - in);
+    if (in > 0 && iou >= best_iou) {
+      best_iou = iou;
+      best = s;
+    }
+  }
+  if (best < 0) {
+    member(box).setTo(255);
+    return member;
+  }
+  const float best_depth = stats[static_cast<size_t>(best)].median_depth;
+  std::vector<uint8_t> joins(static_cast<size_t>(n), 0);
+  for (int s = 0; s < n; ++s) {
+    const SegmentStats& st = stats[static_cast<size_t>(s)];
+    const bool mostly_inside = inside[static_cast<size_t>(s)] >= options.min_inside_box * st.area;
+    const bool same_depth =
+        best_depth <= 0 || st.median_depth <= 0 ||
+        std::abs(st.median_depth - best_depth) <=
+            std::max(options.same_depth_tolerance * best_depth, options.same_depth_min_m);
+    joins[static_cast<size_t>(s)] = s == best || (mostly_inside && same_depth && st.area > 0);
+    if (joins[static_cast<size_t>(s)]) (*segment_labels)[static_cast<size_t>(s)] = kKnownMovable;
+  }
+  for (int y = box.y; y < box.br().y; ++y) {
+    const int* row = seg.ptr<int>(y);
+    uint8_t* m = member.ptr<uint8_t>(y);
+    for (int x = box.x; x < box.br().x; ++x) {
+      if (row[x] >= 0 && joins[static_cast<size_t>(row[x])]) m[x] = 255;
+    }
+  }
+  return member;
+}
+
+// Unknown objects selected by motion boundaries: per segment, 1 when its outline lies on them
+// and it is the nearer side along its outline.
+std::vector<uint8_t> SelectedByMotion(const std::vector<SegmentStats>& stats, int max_area,
+                                      const SdoClassifierOptions& options) {
+  std::vector<uint8_t> moving(stats.size(), 0);
+  for (size_t s = 0; s < stats.size(); ++s) {
+    const SegmentStats& st = stats[s];
+    if (st.outline == 0 || st.area > max_area) continue;
+    const bool on_boundary = st.outline_on_boundary >= options.min_outline_on_boundary * st.outline;
+    const int ordered = st.in_front + st.behind;
+    const bool in_front =
+        st.depth_pairs == 0 || (st.in_front >= options.min_in_front * ordered &&
+                                st.in_front >= options.min_in_front_of_outline * st.depth_pairs);
+    moving[s] = on_boundary && in_front;
+  }
+  return moving;
+}
+
+// The persistence memory carried to this frame along `flow` (backward lookup, first order).
+cv::Mat CarryAlongFlow(const cv::Mat& memory, const cv::Mat& flow) {
+  if (flow.empty()) return memory.clone();
+  const cv::Size work = memory.size();
+  cv::Mat flow_work;
+  cv::resize(flow, flow_work, work, 0, 0, cv::INTER_LINEAR);
+  flow_work *= static_cast<double>(work.width) / flow.cols;
+  cv::Mat map(work, CV_32FC2);
+  for (int y = 0; y < work.height; ++y) {
+    for (int x = 0; x < work.width; ++x) {
+      const cv::Vec2f f = flow_work.at<cv::Vec2f>(y, x);
+      map.at<cv::Vec2f>(y, x) =
+          cv::Vec2f(static_cast<float>(x) - f[0], static_cast<float>(y) - f[1]);
+    }
+  }
+  cv::Mat carried(work, CV_8U, cv::Scalar(0));
+  cv::remap(memory, carried, map, cv::noArray(), cv::INTER_NEAREST, cv::BORDER_CONSTANT);
+  return carried;
+}
+
+// Segments the carried `memory` covers stay dynamic (`moving` |= 2: remembered, not refreshed).
+void MarkRemembered(const cv::Mat& memory, const cv::Mat& seg,
+                    const std::vector<SegmentStats>& stats, int max_area,
+                    const SdoClassifierOptions& options, std::vector<uint8_t>* moving) {
+  std::vector<int> remembered(stats.size(), 0);
+  for (int y = 0; y < seg.rows; ++y) {
+    const int* row = seg.ptr<int>(y);
+    const uint8_t* m = memory.ptr<uint8_t>(y);
+    for (int x = 0; x < seg.cols; ++x) {
+      if (row[x] >= 0 && m[x] > 0) ++remembered[static_cast<size_t>(row[x])];
+    }
+  }
+  for (size_t s = 0; s < stats.size(); ++s) {
+    const SegmentStats& st = stats[s];
+    // The memory stays on the pixels a mover covered; where it has gone, the wall that comes
+    // back into view there lies behind whatever borders it, and is not remembered.
+    const int ordered = st.in_front + st.behind;
+    const bool behind = ordered >= options.persistence_min_ordered &&
+                        st.in_front < options.persistence_min_in_front * ordered;
+    const bool covered = st.area <= max_area
+                             ? remembered[s] >= options.persistence_overlap * st.area
+                             : remembered[s] >= options.persistence_large_overlap * st.area;
+    if (st.area > 0 && !behind && covered) (*moving)[s] |= 2;
+  }
+}
+
+}  // namespace
+
 SdoResult SdoClassifier::Classify(const Segmentation& segments,
                                   const std::vector<Detection>& detections,
                                   const cv::Mat& boundary_mask, const cv::Mat& flow,
@@ -74,9 +244,6 @@ SdoResult SdoClassifier::Classify(const Segmentation& segments,
   const int n = segments.count;
   cv::Mat depth_work(work, CV_32F, cv::Scalar(0));
   if (!depth.empty()) cv::resize(depth, depth_work, work, 0, 0, cv::INTER_NEAREST);
-
-  // Per-segment area, outline, depth order along the outline.
-  std::vector<SegmentStats> stats(static_cast<size_t>(n));
   cv::Mat near_boundary(work, CV_8U, cv::Scalar(0));
   if (!boundary_mask.empty()) {
     cv::resize(boundary_mask, result.boundary_mask, work, 0, 0, cv::INTER_AREA);
@@ -87,186 +254,31 @@ SdoResult SdoClassifier::Classify(const Segmentation& segments,
   } else {
     result.boundary_mask = cv::Mat(work, CV_8U, cv::Scalar(0));
   }
-  const double ratio = options_.in_front_ratio;
-  for (int y = 0; y < work.height; ++y) {
-    const int* row = seg.ptr<int>(y);
-    const float* d = depth_work.ptr<float>(y);
-    for (int x = 0; x < work.width; ++x) {
-      const int s = row[x];
-      if (s < 0) continue;
-      SegmentStats& st = stats[static_cast<size_t>(s)];
-      ++st.area;
-      if (d[x] > 0) st.depths.push_back(d[x]);
-      bool outline = false;
-      // Right and down neighbours: each pair is visited once and counts for both sides.
-      const int nx[2] = {x + 1, x}, ny[2] = {y, y + 1};
-      for (int k = 0; k < 2; ++k) {
-        if (nx[k] >= work.width || ny[k] >= work.height) continue;
-        const int t = seg.at<int>(ny[k], nx[k]);
-        if (t == s) continue;
-        outline = true;
-        const float dt = depth_work.at<float>(ny[k], nx[k]);
-        if (t >= 0 && d[x] > 0 && dt > 0) {
-          SegmentStats& other = stats[static_cast<size_t>(t)];
-          ++st.depth_pairs;
-          ++other.depth_pairs;
-          if (dt > d[x] * ratio) ++st.in_front, ++other.behind;
-          if (d[x] > dt * ratio) ++other.in_front, ++st.behind;
-        }
-      }
-      // Left and up neighbours only mark this pixel as outline.
-      if (!outline && ((x > 0 && row[x - 1] != s) || (y > 0 && seg.at<int>(y - 1, x) != s)))
-        outline = true;
-      if (outline) {
-        ++st.outline;
-        st.outline_on_boundary += near_boundary.at<uint8_t>(y, x) != 0;
-      }
-    }
-  }
-  for (SegmentStats& st : stats) st.median_depth = Median(&st.depths);
-
-  result.segment_labels.assign(static_cast<size_t>(n), kStatic);
-  cv::Mat known(work, CV_8U, cv::Scalar(0));
+  const std::vector<SegmentStats> stats =
+      MeasureSegments(seg, n, depth_work, near_boundary, options_.in_front_ratio);
 
   // Known movable classes.
+  result.segment_labels.assign(static_cast<size_t>(n), kStatic);
+  cv::Mat known(work, CV_8U, cv::Scalar(0));
   const auto& movable = options_.movable_classes;
   for (const Detection& det : detections) {
     if (std::find(movable.begin(), movable.end(), det.class_name) == movable.end()) continue;
-    const cv::Rect box = cv::Rect(cv::Point(static_cast<int>(std::floor(det.box.x * scale)),
-                                            static_cast<int>(std::floor(det.box.y * scale))),
-                                  cv::Point(static_cast<int>(std::ceil(det.box.br().x * scale)),
-                                            static_cast<int>(std::ceil(det.box.br().y * scale)))) &
-                         cv::Rect(0, 0, work.width, work.height);
-    if (box.area() <= 0) continue;
-    std::vector<int> inside(static_cast<size_t>(n), 0);
-    for (int y = box.y; y < box.br().y; ++y) {
-      const int* row = seg.ptr<int>(y);
-      for (int x = box.x; x < box.br().x; ++x) {
-        if (row[x] >= 0) ++inside[static_cast<size_t>(row[x])];
-      }
-    }
-    int best = -1;
-    double best_iou = options_.min_box_iou;
-    for (int s = 0; s < n; ++s) {
-      const double in = inside[static_cast<size_t>(s)];
-      const double iou = in / (stats[static_cast<size_t>(s)].area + box.area() - in);
-      if (in > 0 && iou >= best_iou) {
-        best_iou = iou;
-        best = s;
-      }
-    }
-    cv::Mat member(work, CV_8U, cv::Scalar(0));
-    if (best < 0) {
-      member(box).setTo(255);
-    } else {
-      const float best_depth = stats[static_cast<size_t>(best)].median_depth;
-      std::vector<uint8_t> joins(static_cast<size_t>(n), 0);
-      for (int s = 0; s < n; ++s) {
-        const SegmentStats& st = stats[static_cast<size_t>(s)];
-        const bool mostly_inside =
-            inside[static_cast<size_t>(s)] >= options_.min_inside_box * st.area;
-        const bool same_depth =
-            best_depth <= 0 || st.median_depth <= 0 ||
-            std::abs(st.median_depth - best_depth) <=
-                std::max(options_.same_depth_tolerance * best_depth, options_.same_depth_min_m);
-        joins[static_cast<size_t>(s)] = s == best || (mostly_inside && same_depth && st.area > 0);
-        if (joins[static_cast<size_t>(s)])
-          result.segment_labels[static_cast<size_t>(s)] = kKnownMovable;
-      }
-      for (int y = box.y; y < box.br().y; ++y) {
-        const int* row = seg.ptr<int>(y);
-        uint8_t* m = member.ptr<uint8_t>(y);
-        for (int x = box.x; x < box.br().x; ++x) {
-          if (row[x] >= 0 && joins[static_cast<size_t>(row[x])]) m[x] = 255;
-        }
-      }
-    }
-    known |= member;
+    known |= DetectedObject(det, seg, n, stats, scale, options_, &result.segment_labels);
   }
-
-  // Unknown objects selected by motion boundaries.
+  // Unknown objects: selected by motion boundaries, or remembered from the frames before.
   const int max_area = static_cast<int>(options_.max_segment_area * work.area());
-  std::vector<uint8_t> moving(static_cast<size_t>(n), 0);
-  for (int s = 0; s < n; ++s) {
-    const SegmentStats& st = stats[static_cast<size_t>(s)];
-    if (st.outline == 0 || st.area > max_area) continue;
-    const bool on_boundary =
-        st.outline_on_boundary >= options_.min_outline_on_boundary * st.outline;
-    const int ordered = st.in_front + st.behind;
-    const bool in_front =
-        st.depth_pairs == 0 || (st.in_front >= options_.min_in_front * ordered &&
-                                st.in_front >= options_.min_in_front_of_outline * st.depth_pairs);
-    moving[static_cast<size_t>(s)] = on_boundary && in_front;
-  }
-  // Persistence: carry the memory to this frame along the flow (backward lookup, first order),
-  // then segments covered by it stay dynamic.
+  std::vector<uint8_t> moving = SelectedByMotion(stats, max_area, options_);
   cv::Mat memory(work, CV_8U, cv::Scalar(0));
   if (!memory_.empty() && memory_.size() == work) {
-    if (!flow.empty()) {
-      cv::Mat flow_work;
-      cv::resize(flow, flow_work, work, 0, 0, cv::INTER_LINEAR);
-      flow_work *= static_cast<double>(work.width) / flow.cols;
-      cv::Mat map(work, CV_32FC2);
-      for (int y = 0; y < work.height; ++y) {
-        for (int x = 0; x < work.width; ++x) {
-          const cv::Vec2f f = flow_work.at<cv::Vec2f>(y, x);
-          map.at<cv::Vec2f>(y, x) =
-              cv::Vec2f(static_cast<float>(x) - f[0], static_cast<float>(y) - f[1]);
-        }
-      }
-      cv::remap(memory_, memory, map, cv::noArray(), cv::INTER_NEAREST, cv::BORDER_CONSTANT);
-    } else {
-      memory = memory_.clone();
-    }
-    std::vector<int> remembered(static_cast<size_t>(n), 0);
-    for (int y = 0; y < work.height; ++y) {
-      const int* row = seg.ptr<int>(y);
-      const uint8_t* m = memory.ptr<uint8_t>(y);
-      for (int x = 0; x < work.width; ++x) {
-        if (row[x] >= 0 && m[x] > 0) ++remembered[static_cast<size_t>(row[x])];
-      }
-    }
-    for (int s = 0; s < n; ++s) {
-      const SegmentStats& st = stats[static_cast<size_t>(s)];
-      // The memory stays on the pixels a mover covered; where it has gone, the wall that comes
-      // back into view there lies behind whatever borders it, and is not remembered.
-      const int ordered = st.in_front + st.behind;
-      const bool behind = ordered >= options_.persistence_min_ordered &&
-                          st.in_front < options_.persistence_min_in_front * ordered;
-      const int memory = remembered[static_cast<size_t>(s)];
-      const bool covered = st.area <= max_area
-                               ? memory >= options_.persistence_overlap * st.area
-                               : memory >= options_.persistence_large_overlap * st.area;
-      if (st.area > 0 && !behind && covered)
-        moving[static_cast<size_t>(s)] |= 2;  // remembered, not refreshed
-    }
+    memory = CarryAlongFlow(memory_, flow);
+    MarkRemembered(memory, seg, stats, max_area, options_, &moving);
     cv::subtract(memory, cv::Scalar(1), memory);  // saturates at 0
   }
   for (int s = 0; s < n; ++s) {
     if (moving[static_cast<size_t>(s)] && result.segment_labels[static_cast<size_t>(s)] == kStatic)
       result.segment_labels[static_cast<size_t>(s)] = kMovingUnknown;
   }
-
-  // The label image; freshly selected segments refresh the memory.
-  result.work_labels.create(work, CV_8U);
-  const uint8_t refresh = static_cast<uint8_t>(options_.persistence_frames);
-  for (int y = 0; y < work.height; ++y) {
-    const int* row = seg.ptr<int>(y);
-    const uint8_t* k = known.ptr<uint8_t>(y);
-    uint8_t* out = result.work_labels.ptr<uint8_t>(y);
-    uint8_t* m = memory.ptr<uint8_t>(y);
-    for (int x = 0; x < work.width; ++x) {
-      const int s = row[x];
-      if (k[x]) {
-        out[x] = kKnownMovable;
-      } else if (s >= 0 && result.segment_labels[static_cast<size_t>(s)] == kMovingUnknown) {
-        out[x] = kMovingUnknown;
-      } else {
-        out[x] = kStatic;
-      }
-      if (s >= 0 && (moving[static_cast<size_t>(s)] & 1)) m[x] = std::max(m[x], refresh);
-    }
-  }
+  PaintLabels(seg, known, moving, &memory, &result);
   memory_ = memory;
   if (options_.margin_px > 0) {
     // Grow dynamic regions (max filter: known-movable wins over moving-unknown only by value
@@ -279,6 +291,31 @@ SdoResult SdoClassifier::Classify(const Segmentation& segments,
   }
   cv::resize(result.work_labels, result.labels, image_size, 0, 0, cv::INTER_NEAREST);
   return result;
+}
+
+void SdoClassifier::PaintLabels(const cv::Mat& seg, const cv::Mat& known,
+                                const std::vector<uint8_t>& moving, cv::Mat* memory,
+                                SdoResult* result) const {
+  // The label image; freshly selected segments refresh the memory.
+  result->work_labels.create(seg.size(), CV_8U);
+  const uint8_t refresh = static_cast<uint8_t>(options_.persistence_frames);
+  for (int y = 0; y < seg.rows; ++y) {
+    const int* row = seg.ptr<int>(y);
+    const uint8_t* k = known.ptr<uint8_t>(y);
+    uint8_t* out = result->work_labels.ptr<uint8_t>(y);
+    uint8_t* m = memory->ptr<uint8_t>(y);
+    for (int x = 0; x < seg.cols; ++x) {
+      const int s = row[x];
+      if (k[x]) {
+        out[x] = kKnownMovable;
+      } else if (s >= 0 && result->segment_labels[static_cast<size_t>(s)] == kMovingUnknown) {
+        out[x] = kMovingUnknown;
+      } else {
+        out[x] = kStatic;
+      }
+      if (s >= 0 && (moving[static_cast<size_t>(s)] & 1)) m[x] = std::max(m[x], refresh);
+    }
+  }
 }
 
 }  // namespace sdoslam

@@ -119,6 +119,11 @@ class SdoClassifier {
   void Reset() { memory_.release(); }
 
  private:
+  // Classify's label image at the segments' resolution (result->work_labels): known movable
+  // where `known`, moving-unknown on the segments labelled so, static elsewhere; the segments
+  // freshly selected by motion (`moving` & 1) refresh `memory` to persistence_frames.
+  void PaintLabels(const cv::Mat& seg, const cv::Mat& known, const std::vector<uint8_t>& moving,
+                   cv::Mat* memory, SdoResult* result) const;
   SdoClassifierOptions options_;
   cv::Mat memory_;  // CV_8U at work resolution: frames left for which a moved region persists
 };
