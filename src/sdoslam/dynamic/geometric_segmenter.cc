@@ -56,7 +56,6 @@ GeometricSegmenter::GeometricSegmenter(const GeometricSegmenterOptions& options,
 }
 
 Segmentation GeometricSegmenter::Segment(const FrontEndFrame& frame) {
-  const int W = work_size_.width, H = work_size_.height;
   Segmentation s;
   // Fresh images each frame: the labels travel on with the result and callers may keep
   // last_edges(), so neither may be overwritten by the next frame.
@@ -65,15 +64,25 @@ Segmentation GeometricSegmenter::Segment(const FrontEndFrame& frame) {
     s.labels = cv::Mat(work_size_, CV_32S, cv::Scalar(-1));
     return s;
   }
-
-  // The work images below are members: same size every frame, so OpenCV reuses their buffers.
-  cv::Mat& z = z_;
-  cv::resize(frame.depth, z, work_size_, 0, 0, cv::INTER_NEAREST);
+  // The work images are members: same size every frame, so OpenCV reuses their buffers.
+  cv::resize(frame.depth, z_, work_size_, 0, 0, cv::INTER_NEAREST);
   cv::resize(frame.bgr, bgr_, work_size_, 0, 0, cv::INTER_AREA);
-
-  cv::rgbd::depthTo3d(z, cv::Mat(K_work_), points_);
+  cv::rgbd::depthTo3d(z_, cv::Mat(K_work_), points_);
   (*normals_)(points_, normals_out_);
 
+  MarkDepthSteps();
+  OrientNormals();
+  MarkCreases();
+  cv::Mat labels_image(work_size_, CV_32S);
+  s.count = LabelRegions(&labels_image);
+  GrowRegions(labels_image.ptr<int>());
+  s.labels = labels_image;
+  return s;
+}
+
+void GeometricSegmenter::MarkDepthSteps() {
+  const int W = work_size_.width, H = work_size_.height;
+  const cv::Mat& z = z_;
   // Edges: depth steps between neighbours (a row, a column and both diagonals), and concave
   // creases where the normals differ by more than concave_angle_deg and each side lies on the
   // other's front side (a convex fold puts each behind the other's tangent plane).
@@ -100,18 +109,19 @@ Segmentation GeometricSegmenter::Segment(const FrontEndFrame& frame) {
       if (x > 0 && is_step(zi, zb[x - 1])) er[x] = eb[x - 1] = kDepthStep;
     }
   }
+}
 
+void GeometricSegmenter::OrientNormals() {
   // The crease test below looks at every pixel's normal from several centres: each normal is
   // turned towards the camera (the origin) once, and the normal of a pixel without depth or
   // without a finite normal is made unusable once. The work images are continuous (allocated by
   // create()), so the loops below index them as flat arrays.
-  CV_Assert(z.isContinuous() && points_.isContinuous() && normals_out_.isContinuous() &&
-            edges.isContinuous());
-  const int size = W * H;
-  const float* zf = z.ptr<float>();
+  CV_Assert(z_.isContinuous() && points_.isContinuous() && normals_out_.isContinuous() &&
+            last_edges_.isContinuous());
+  const int size = work_size_.area();
+  const float* zf = z_.ptr<float>();
   const cv::Vec3f* points = points_.ptr<cv::Vec3f>();
   cv::Vec3f* normals = normals_out_.ptr<cv::Vec3f>();
-  uint8_t* edge = edges.ptr<uint8_t>();
   // Unusable: NaN, which fails every comparison of the crease test below, so that one
   // comparison says both "usable" and "sharp" and a flat surface (the common case) is decided by
   // a dot product alone (a look-up table of usable pixels before: perf had the test at a third
@@ -124,7 +134,14 @@ Segmentation GeometricSegmenter::Segment(const FrontEndFrame& frame) {
       normals[i] = -normals[i];
     }
   }
+}
 
+void GeometricSegmenter::MarkCreases() {
+  const int W = work_size_.width, H = work_size_.height;
+  const float* zf = z_.ptr<float>();
+  const cv::Vec3f* points = points_.ptr<cv::Vec3f>();
+  const cv::Vec3f* normals = normals_out_.ptr<cv::Vec3f>();
+  uint8_t* edge = last_edges_.ptr<uint8_t>();
   // Creases: the pixels on either side of each pixel, concave_span_px away along a row, a column
   // or a diagonal, are compared, and the pixel is an edge when the fold between them is concave
   // and sharp. Looking across the pixel (not from it) gives a band of edge pixels that closes
@@ -162,7 +179,10 @@ Segmentation GeometricSegmenter::Segment(const FrontEndFrame& frame) {
       inside[i] = 1;
     }
   }
+}
 
+int GeometricSegmenter::LabelRegions(cv::Mat* labels_image) {
+  const int size = work_size_.area();
   // Regions: connected pixels with depth and no edge; the small ones are dissolved.
   const int n =
       cv::connectedComponentsWithStats(inside_, components_, stats_, centroids_, 4, CV_32S);
@@ -171,16 +191,20 @@ Segmentation GeometricSegmenter::Segment(const FrontEndFrame& frame) {
   for (int c = 1; c < n; ++c) {
     if (stats_.at<int>(c, cv::CC_STAT_AREA) >= options_.min_size) renumber[c] = count++;
   }
-  cv::Mat labels_image(work_size_, CV_32S);
   CV_Assert(components_.isContinuous() && bgr_.isContinuous());
-  int* labels = labels_image.ptr<int>();
+  int* labels = labels_image->ptr<int>();
   const int* components = components_.ptr<int>();
   candidates_.clear();
   for (int i = 0; i < size; ++i) {
     labels[i] = renumber[components[i]];
     if (labels[i] < 0) candidates_.push_back(i);
   }
+  return count;
+}
 
+void GeometricSegmenter::GrowRegions(int* labels) {
+  const int W = work_size_.width, H = work_size_.height, size = W * H;
+  const float* zf = z_.ptr<float>();
   // Growth: an unlabelled pixel takes the label of the 4-neighbour nearest in depth (within
   // max_grow_depth_ratio), or, where either has no depth, nearest in colour. Each pass reads the
   // previous one's labels, so the result does not depend on the scan order: a pass collects its
@@ -239,9 +263,6 @@ Segmentation GeometricSegmenter::Segment(const FrontEndFrame& frame) {
       }
     }
   }
-  s.labels = labels_image;
-  s.count = count;
-  return s;
 }
 
 }  // namespace sdoslam

@@ -67,6 +67,20 @@ class GeometricSegmenter : public Segmenter {
   const cv::Mat& last_edges() const { return last_edges_; }
 
  private:
+  // The steps of Segment, on the work images. Marks depth steps between neighbours (a row, a
+  // column and both diagonals) in last_edges_.
+  void MarkDepthSteps();
+  // Turns each normal towards the camera; makes those of pixels without depth or a finite
+  // normal NaN (unusable).
+  void OrientNormals();
+  // Marks concave creases in last_edges_, and the region pixels (depth and no edge) in inside_.
+  void MarkCreases();
+  // The regions (connected region pixels, the small ones dissolved) into `labels_image`, -1
+  // elsewhere; returns how many. The unlabelled pixels become candidates_ for growth.
+  int LabelRegions(cv::Mat* labels_image);
+  // Grows the regions into the unlabelled pixels (grow_passes passes).
+  void GrowRegions(int* labels);
+
   GeometricSegmenterOptions options_;
   cv::Size work_size_;
   cv::Matx33d K_work_;  // the camera matrix at work resolution
