@@ -151,6 +151,24 @@ class LocalMapper {
   std::vector<KeyFrame*> LocalWindow(KeyFrame* keyframe) const;
   void LocalBundleAdjustment(KeyFrame* keyframe, MappingResult* result, std::mutex* map_mutex,
                              const std::atomic<bool>* stop);
+  // The local BA's window: the keyframes it refines, their points, and the keyframes it holds
+  // fixed, within the observation budget (max_ba_observations).
+  struct BaWindow {
+    std::vector<KeyFrame*> local, fixed;
+    std::vector<MapPoint*> points;
+  };
+  BaWindow SelectBaWindow(KeyFrame* keyframe) const;
+  // One observation of the problem: which point, seen by which keyframe.
+  struct BaLink {
+    MapPoint* point;
+    KeyFrame* keyframe;
+  };
+  // The window as a problem for BundleAdjust; `links`: its observations, in the problem's order.
+  static BundleAdjustmentProblem MakeBaProblem(const BaWindow& window, std::vector<BaLink>* links);
+  // Writes the solution back to what still exists, and drops the outlier observations.
+  void WriteBackBa(const BaWindow& window, const BundleAdjustmentProblem& solved,
+                   const std::vector<bool>& inlier, const std::vector<BaLink>& links,
+                   MappingResult* result);
   int CullKeyFrames(KeyFrame* keyframe);
   int CullCrowdedKeyFrames(KeyFrame* keyframe);
   struct Redundancy {
