@@ -304,12 +304,29 @@ void LoopCloser::Correct(KeyFrame* keyframe, const Verified& verified, LoopRecor
   for (const auto& [id, kf] : map_->keyframes()) {
     if (!kf->bad) before[id] = kf->pose();
   }
+  std::set<uint64_t> connected_ids;
+  const std::map<uint64_t, uint64_t> corrected_by =
+      MoveToLoop(keyframe, verified.T_camera_world, &connected_ids);
+  record->fused_points = FuseAcrossLoop(keyframe, verified, connected_ids);
+  record->fuse_ms = MsSince(stage_start);
+  stage_start = std::chrono::steady_clock::now();
+
+  CorrectedGraph corrected = SpreadCorrection(loop, before, record);
+  record->pose_graph_ms = MsSince(stage_start);
+  stage_start = std::chrono::steady_clock::now();
+
+  MovePoints(keyframe, before, corrected_by, &corrected);
+  record->points_ms = MsSince(stage_start);
+}
+
+std::map<uint64_t, uint64_t> LoopCloser::MoveToLoop(KeyFrame* keyframe,
+                                                    const Eigen::Isometry3d& T_camera_world,
+                                                    std::set<uint64_t>* connected_ids) {
   // 1. The keyframe and its neighbours move rigidly to the loop, and their points with them.
   const std::vector<KeyFrame*> connected =
       WithStrongestNeighbours(keyframe, std::numeric_limits<int>::max());
-  std::set<uint64_t> connected_ids;
-  for (const KeyFrame* kf : connected) connected_ids.insert(kf->id);
-  const Eigen::Isometry3d change = keyframe->pose().inverse() * verified.T_camera_world;
+  for (const KeyFrame* kf : connected) connected_ids->insert(kf->id);
+  const Eigen::Isometry3d change = keyframe->pose().inverse() * T_camera_world;
   std::map<uint64_t, uint64_t> corrected_by;  // point id -> keyframe whose move it followed
   std::vector<MapPoint*> moved;
   for (KeyFrame* kf : connected) {
@@ -323,7 +340,12 @@ void LoopCloser::Correct(KeyFrame* keyframe, const Verified& verified, LoopRecor
     kf->frame.T_camera_world = T_new;
   }
   for (MapPoint* p : moved) p->UpdateNormalAndDepth();
+  return corrected_by;
+}
 
+int LoopCloser::FuseAcrossLoop(KeyFrame* keyframe, const Verified& verified,
+                               const std::set<uint64_t>& connected_ids) {
+  KeyFrame* loop = verified.loop;
   // 2. The matched points become the loop side's, and the loop side's points are fused into
   // the neighbours: the map holds each place once.
   int fused = 0;
@@ -351,7 +373,6 @@ void LoopCloser::Correct(KeyFrame* keyframe, const Verified& verified, LoopRecor
     for (const auto& [id, weight] : kf->covisibility) linked_before[kf->id].insert(id);
     fused += Fuse(*map_, kf, loop_points);
   }
-  record->fused_points = fused;
   // 3. New covisibility links across the loop are its edges in the essential graph.
   // The strongest links of each keyframe, as in the essential graph: in a dense map each loop
   // would otherwise add its connected keyframes times the loop side's. Only the keyframes fused
@@ -369,16 +390,19 @@ void LoopCloser::Correct(KeyFrame* keyframe, const Verified& verified, LoopRecor
     }
   }
   loop_edges_.insert(std::minmax(keyframe->id, loop->id));
-  record->fuse_ms = MsSince(stage_start);
-  stage_start = std::chrono::steady_clock::now();
+  return fused;
+}
 
+LoopCloser::CorrectedGraph LoopCloser::SpreadCorrection(
+    KeyFrame* loop, const std::map<uint64_t, Eigen::Isometry3d>& before, LoopRecord* record) {
+  CorrectedGraph corrected;
+  PoseGraphProblem& graph = corrected.graph;
+  std::vector<KeyFrame*>& keyframes = corrected.keyframes;
+  std::vector<KeyFrame*>& pending = corrected.pending;
   // 4. The pose graph spreads the correction: the loop keyframe holds the gauge, spanning-tree
   // and strong covisibility edges keep the odometry measured before the loop, loop edges what
   // the loop measured.
-  PoseGraphProblem graph;
   std::map<uint64_t, int> node;
-  std::vector<KeyFrame*> keyframes;
-  std::vector<KeyFrame*> pending;  // made by tracking, not yet inserted by local mapping
   for (const auto& [id, kf] : map_->keyframes()) {
     if (kf->bad) continue;
     if (kf->parent == nullptr && kf->covisibility.empty() && id != 0) {
@@ -390,7 +414,7 @@ void LoopCloser::Correct(KeyFrame* keyframe, const Verified& verified, LoopRecor
     graph.fixed.push_back(kf.get() == loop);
     keyframes.push_back(kf.get());
   }
-  const std::vector<Eigen::Isometry3d> pre_graph = graph.poses;
+  corrected.pre_graph = graph.poses;
   auto measured = [&](uint64_t i, uint64_t j) {
     const auto bi = before.find(i), bj = before.find(j);
     if (bi != before.end() && bj != before.end())
@@ -424,9 +448,15 @@ void LoopCloser::Correct(KeyFrame* keyframe, const Verified& verified, LoopRecor
   record->graph_keyframes = static_cast<int>(graph.poses.size());
   record->graph_edges = static_cast<int>(graph.edges.size());
   OptimizePoseGraph(&graph, options_.pose_graph);
-  record->pose_graph_ms = MsSince(stage_start);
-  stage_start = std::chrono::steady_clock::now();
+  return corrected;
+}
 
+void LoopCloser::MovePoints(KeyFrame* keyframe, const std::map<uint64_t, Eigen::Isometry3d>& before,
+                            const std::map<uint64_t, uint64_t>& corrected_by,
+                            CorrectedGraph* corrected) {
+  const PoseGraphProblem& graph = corrected->graph;
+  const std::vector<Eigen::Isometry3d>& pre_graph = corrected->pre_graph;
+  std::vector<KeyFrame*>& keyframes = corrected->keyframes;
   // 5. Every point follows the keyframe it was corrected with, or its reference keyframe.
   std::map<uint64_t, Eigen::Isometry3d> to_new;  // keyframe id -> pre-graph world -> new world
   for (size_t k = 0; k < keyframes.size(); ++k) {
@@ -436,7 +466,7 @@ void LoopCloser::Correct(KeyFrame* keyframe, const Verified& verified, LoopRecor
   // A keyframe still queued for local mapping has no edges yet; it was made a moment ago, next
   // to the keyframe that closed the loop, and moves with it.
   const Eigen::Isometry3d keyframe_change = before.at(keyframe->id).inverse() * keyframe->pose();
-  for (KeyFrame* kf : pending) {
+  for (KeyFrame* kf : corrected->pending) {
     const Eigen::Isometry3d T_new = kf->pose() * keyframe_change;
     to_new[kf->id] = T_new.inverse() * kf->pose();
     kf->frame.T_camera_world = T_new;
@@ -464,7 +494,6 @@ void LoopCloser::Correct(KeyFrame* keyframe, const Verified& verified, LoopRecor
     if (b != before.end()) change_by_keyframe[kf->id] = b->second.inverse() * kf->pose();
   }
   map_->NoteCorrection(std::move(change_by_keyframe));
-  record->points_ms = MsSince(stage_start);
 }
 
 void LoopCloser::GlobalBundleAdjustment(std::unique_lock<std::mutex>* lock,

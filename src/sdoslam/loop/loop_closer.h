@@ -148,6 +148,33 @@ class LoopCloser {
   };
   bool Verify(KeyFrame* keyframe, KeyFrame* candidate, Verified* verified);
   void Correct(KeyFrame* keyframe, const Verified& verified, LoopRecord* record);
+  // The steps of Correct. Moves the keyframe to its corrected pose `T_camera_world`, and its
+  // covisible keyframes (their ids into `connected_ids`) and their points rigidly with it;
+  // returns, per point moved, the keyframe whose move it followed.
+  std::map<uint64_t, uint64_t> MoveToLoop(KeyFrame* keyframe,
+                                          const Eigen::Isometry3d& T_camera_world,
+                                          std::set<uint64_t>* connected_ids);
+  // Makes the matched points the loop side's, fuses the loop side's points into the keyframe's
+  // neighbours, and adds the new links across the loop to loop_edges_. Returns the points fused.
+  int FuseAcrossLoop(KeyFrame* keyframe, const Verified& verified,
+                     const std::set<uint64_t>& connected_ids);
+  // The essential graph's solution: its keyframes in `graph`'s order with their poses before it
+  // was solved, and the keyframes still pending for local mapping (not in the graph).
+  struct CorrectedGraph {
+    PoseGraphProblem graph;
+    std::vector<KeyFrame*> keyframes, pending;
+    std::vector<Eigen::Isometry3d> pre_graph;
+  };
+  // Spreads the correction over the essential graph (the loop keyframe holds the gauge);
+  // `before`: every good keyframe's pose before the loop.
+  CorrectedGraph SpreadCorrection(KeyFrame* loop,
+                                  const std::map<uint64_t, Eigen::Isometry3d>& before,
+                                  LoopRecord* record);
+  // Gives the keyframes their corrected poses (the pending ones move with `keyframe`), moves
+  // every point with the keyframe it was corrected with or its reference keyframe, and notes
+  // the correction in the map.
+  void MovePoints(KeyFrame* keyframe, const std::map<uint64_t, Eigen::Isometry3d>& before,
+                  const std::map<uint64_t, uint64_t>& corrected_by, CorrectedGraph* corrected);
   // Solved without `lock` when it holds one; written back once tracking is between frames.
   void GlobalBundleAdjustment(std::unique_lock<std::mutex>* lock,
                               std::condition_variable* frame_done,
