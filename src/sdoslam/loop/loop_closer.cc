@@ -143,6 +143,10 @@ std::vector<KeyFrame*> LoopCloser::DetectCandidates(KeyFrame* keyframe, const Bo
     groups_.clear();
     return {};
   }
+  return ConsistentCandidates(Representatives(score));
+}
+
+std::vector<KeyFrame*> LoopCloser::Representatives(const std::map<uint64_t, double>& score) const {
   // ORB-SLAM2's accumulated score: a place is seen by several keyframes; a candidate counts
   // with its covisible neighbours that were found too, and stands for its group by the best
   // single score in it.
@@ -174,6 +178,11 @@ std::vector<KeyFrame*> LoopCloser::DetectCandidates(KeyFrame* keyframe, const Bo
     if (s.accumulated >= 0.75 * best_accumulated && chosen.insert(s.best->id).second)
       representatives.push_back(s.best);
   }
+  return representatives;
+}
+
+std::vector<KeyFrame*> LoopCloser::ConsistentCandidates(
+    const std::vector<KeyFrame*>& representatives) {
   // Consistency over consecutive keyframes: a group (a representative and its covisible
   // keyframes) continues a group of the previous keyframe when they share a keyframe.
   std::vector<Group> groups;
@@ -561,6 +570,12 @@ void LoopCloser::GlobalBundleAdjustment(std::unique_lock<std::mutex>* lock,
     record->global_ba_discarded = true;
     return;
   }
+  WriteBackGlobalBa(keyframes, points, ba);
+}
+
+void LoopCloser::WriteBackGlobalBa(const std::vector<KeyFrame*>& keyframes,
+                                   const std::vector<uint64_t>& points,
+                                   const BundleAdjustmentProblem& ba) {
   // Points made meanwhile (threaded) follow their reference keyframe's move.
   std::map<uint64_t, Eigen::Isometry3d> change_by_keyframe, to_new;
   for (size_t k = 0; k < keyframes.size(); ++k) {

@@ -140,6 +140,13 @@ class LoopCloser {
   };
   // Candidates that passed the consistency test.
   std::vector<KeyFrame*> DetectCandidates(KeyFrame* keyframe, const BowVector& bow);
+  // The places among the keyframes found (id -> score) that score within 75 % of the best,
+  // each counted with its covisible neighbours found too (ORB-SLAM2's accumulated score) and
+  // represented by the best-scoring keyframe in it.
+  std::vector<KeyFrame*> Representatives(const std::map<uint64_t, double>& score) const;
+  // The representatives whose group (with its covisible keyframes) continues a group of the
+  // previous keyframes consistent_detections times; keeps this keyframe's groups for the next.
+  std::vector<KeyFrame*> ConsistentCandidates(const std::vector<KeyFrame*>& representatives);
   struct Verified {
     KeyFrame* loop = nullptr;
     Eigen::Isometry3d T_camera_world = Eigen::Isometry3d::Identity();  // keyframe's, corrected
@@ -179,6 +186,10 @@ class LoopCloser {
   void GlobalBundleAdjustment(std::unique_lock<std::mutex>* lock,
                               std::condition_variable* frame_done,
                               const std::function<bool()>& between_frames, LoopRecord* record);
+  // The solved global BA (`keyframes` and the points with ids `points`, in its order) written
+  // back to what still exists; points made meanwhile follow their reference keyframe's move.
+  void WriteBackGlobalBa(const std::vector<KeyFrame*>& keyframes,
+                         const std::vector<uint64_t>& points, const BundleAdjustmentProblem& ba);
 
   Map* map_;
   KeyFramePlaces* places_;

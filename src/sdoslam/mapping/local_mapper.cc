@@ -156,6 +156,48 @@ bool FailsChi2(const KeyFrame& kf, int i, const Eigen::Vector3d& X) {
          ReprojectionChi2Threshold(m.stereo());
 }
 
+// The linear (DLT) triangulation of the normalised rays `r1` from the camera at `T1_camera_world`
+// and `r2` from `T2_camera_world`; none when the solution lies at infinity.
+std::optional<Eigen::Vector3d> TriangulateRays(const Eigen::Vector3d& r1,
+                                               const Eigen::Isometry3d& T1_camera_world,
+                                               const Eigen::Vector3d& r2,
+                                               const Eigen::Isometry3d& T2_camera_world) {
+  const Eigen::Matrix<double, 3, 4> P1 = T1_camera_world.matrix().topRows<3>();
+  const Eigen::Matrix<double, 3, 4> P2 = T2_camera_world.matrix().topRows<3>();
+  Eigen::Matrix4d A;
+  A.row(0) = r1.x() * P1.row(2) - P1.row(0);
+  A.row(1) = r1.y() * P1.row(2) - P1.row(1);
+  A.row(2) = r2.x() * P2.row(2) - P2.row(0);
+  A.row(3) = r2.y() * P2.row(2) - P2.row(1);
+  const Eigen::Vector4d h =
+      Eigen::JacobiSVD<Eigen::Matrix4d>(A, Eigen::ComputeFullV).matrixV().col(3);
+  if (std::abs(h.w()) < 1e-12) return std::nullopt;
+  return Eigen::Vector3d(h.head<3>() / h.w());
+}
+
+// The two nearest descriptors to `descriptor` among the `candidates` of `other` (not yet
+// `used`) that lie on the epipolar `line` (chi-square 3.84 at their scale).
+BestTwo NearestOnEpipolarLine(const uint8_t* descriptor, const Eigen::Vector3d& line,
+                              const Frame& other, const std::vector<int>& candidates,
+                              const std::vector<bool>& used) {
+  const std::vector<double>& scale = other.geometry->scale;
+  const double line_norm2 = line.x() * line.x() + line.y() * line.y();
+  BestTwo nearest;
+  for (int j : candidates) {
+    if (used[static_cast<size_t>(j)]) continue;
+    const size_t jj = static_cast<size_t>(j);
+    const Eigen::Vector3d x2(other.undistorted[jj].x, other.undistorted[jj].y, 1.0);
+    const double d = line.dot(x2);
+    const int level = other.keypoints[jj].octave;
+    if (d * d / line_norm2 >
+        3.84 * scale[static_cast<size_t>(level)] * scale[static_cast<size_t>(level)]) {
+      continue;  // off the epipolar line
+    }
+    nearest.Add(DescriptorDistance(descriptor, other.descriptors.ptr<uint8_t>(j)), j);
+  }
+  return nearest;
+}
+
 }  // namespace
 
 int LocalMapper::TriangulateNewPoints(KeyFrame* kf) {
@@ -186,43 +228,20 @@ int LocalMapper::TriangulateNewPoints(KeyFrame* kf) {
       if ((existing != nullptr && !existing->bad) || !kf->frame.IsStatic(static_cast<int>(i)))
         continue;
       const Eigen::Vector3d x1(kf->frame.undistorted[i].x, kf->frame.undistorted[i].y, 1.0);
-      const Eigen::Vector3d line = F * x1;
-      const double line_norm2 = line.x() * line.x() + line.y() * line.y();
-      BestTwo nearest;
-      for (int j : free_other) {
-        if (used[static_cast<size_t>(j)]) continue;
-        const size_t jj = static_cast<size_t>(j);
-        const Eigen::Vector3d x2(other->frame.undistorted[jj].x, other->frame.undistorted[jj].y,
-                                 1.0);
-        const double d = line.dot(x2);
-        const int level = other->frame.keypoints[jj].octave;
-        if (d * d / line_norm2 >
-            3.84 * g.scale[static_cast<size_t>(level)] * g.scale[static_cast<size_t>(level)]) {
-          continue;  // off the epipolar line
-        }
-        nearest.Add(DescriptorDistance(kf->frame.descriptors.ptr<uint8_t>(static_cast<int>(i)),
-                                       other->frame.descriptors.ptr<uint8_t>(j)),
-                    j);
-      }
+      const BestTwo nearest =
+          NearestOnEpipolarLine(kf->frame.descriptors.ptr<uint8_t>(static_cast<int>(i)), F * x1,
+                                other->frame, free_other, used);
       // Repetitive texture puts look-alikes on the same epipolar line: demand a clear winner.
       if (!nearest.found() || nearest.best > kMatchStrict || nearest.Ambiguous(0.8)) continue;
       const int best_j = nearest.best_index;
       const size_t j = static_cast<size_t>(best_j);
-      // Linear triangulation (DLT) from the two normalised rays.
-      const Eigen::Vector3d r1 = K_inv * x1;
-      const Eigen::Vector3d r2 = K_inv * Eigen::Vector3d(other->frame.undistorted[j].x,
-                                                         other->frame.undistorted[j].y, 1.0);
-      const Eigen::Matrix<double, 3, 4> P1 = kf->pose().matrix().topRows<3>();
-      const Eigen::Matrix<double, 3, 4> P2 = other->pose().matrix().topRows<3>();
-      Eigen::Matrix4d A;
-      A.row(0) = r1.x() * P1.row(2) - P1.row(0);
-      A.row(1) = r1.y() * P1.row(2) - P1.row(1);
-      A.row(2) = r2.x() * P2.row(2) - P2.row(0);
-      A.row(3) = r2.y() * P2.row(2) - P2.row(1);
-      const Eigen::Vector4d h =
-          Eigen::JacobiSVD<Eigen::Matrix4d>(A, Eigen::ComputeFullV).matrixV().col(3);
-      if (std::abs(h.w()) < 1e-12) continue;
-      const Eigen::Vector3d X = h.head<3>() / h.w();
+      const std::optional<Eigen::Vector3d> triangulated =
+          TriangulateRays(K_inv * x1, kf->pose(),
+                          K_inv * Eigen::Vector3d(other->frame.undistorted[j].x,
+                                                  other->frame.undistorted[j].y, 1.0),
+                          other->pose());
+      if (!triangulated) continue;
+      const Eigen::Vector3d X = *triangulated;
       // Enough parallax, in front of both, consistent in both images and in scale.
       const Eigen::Vector3d ray1 = X - kf->CameraCentre(), ray2 = X - other->CameraCentre();
       if (ray1.normalized().dot(ray2.normalized()) > 0.9998) continue;

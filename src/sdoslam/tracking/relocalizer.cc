@@ -44,6 +44,51 @@ bool Relocalizer::RelocalizeNearPrediction(Frame& frame, const Prior& prior, uin
   return false;
 }
 
+namespace {
+
+// The frame's pose from its matches alone (the last pose may be far off): PnP in RANSAC on the
+// undistorted keypoints; the matches it leaves out are unmatched. OpenCV's RANSAC draws from a
+// fixed seed: runs stay repeatable. False (the frame untouched but for its matches) when fewer
+// than 15 matches or inliers.
+bool PoseByPnp(Frame& frame) {
+  const PinholeIntrinsics& k = frame.geometry->intrinsics;
+  const cv::Matx33d K(k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1);
+  std::vector<cv::Point3d> object;
+  std::vector<cv::Point2d> image;
+  std::vector<int> feature;
+  for (size_t i = 0; i < frame.size(); ++i) {
+    const MapPoint* p = frame.map_points[i];
+    if (p == nullptr || p->bad) continue;
+    object.emplace_back(p->position.x(), p->position.y(), p->position.z());
+    image.emplace_back(frame.undistorted[i].x, frame.undistorted[i].y);
+    feature.push_back(static_cast<int>(i));
+  }
+  if (object.size() < 15) return false;
+  cv::Mat rvec, tvec;
+  std::vector<int> inliers;
+  if (!cv::solvePnPRansac(object, image, K, cv::noArray(), rvec, tvec, false, 200, 4.0f, 0.99,
+                          inliers, cv::SOLVEPNP_EPNP) ||
+      inliers.size() < 15) {
+    return false;
+  }
+  std::vector<uint8_t> keep(frame.size(), 0);
+  for (int k_in : inliers) keep[static_cast<size_t>(feature[static_cast<size_t>(k_in)])] = 1;
+  for (size_t i = 0; i < frame.size(); ++i) {
+    if (!keep[i]) frame.map_points[i] = nullptr;
+  }
+  cv::Matx33d R;
+  cv::Rodrigues(rvec, R);
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) T.linear()(r, c) = R(r, c);
+    T.translation()(r) = tvec.at<double>(r);
+  }
+  frame.T_camera_world = T;
+  return true;
+}
+
+}  // namespace
+
 bool Relocalizer::Relocalize(Frame& frame, const Prior& prior, KeyFrame** reference,
                              uint64_t* frame_stamp, const RefinePose& refine_pose) const {
   if (RelocalizeNearPrediction(frame, prior, frame_stamp, refine_pose)) return true;
@@ -80,47 +125,13 @@ bool Relocalizer::Relocalize(Frame& frame, const Prior& prior, KeyFrame** refere
       add(map_->keyframes().at(c.id).get());
     }
   }
-  const PinholeIntrinsics& k = frame.geometry->intrinsics;
-  const cv::Matx33d K(k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1);
   for (KeyFrame* kf : candidates) {
     std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
     // Vocabulary-guided where the keyframe is among the places (see the matcher).
     const FeatureVector* kf_words = have_places ? places_->Features(kf->id) : nullptr;
     if (SearchByDescriptor(frame, *kf, kf_words, kf_words != nullptr ? &frame_words : nullptr) < 15)
       continue;
-    // The pose from the matches alone (the last pose may be far off): PnP in RANSAC on the
-    // undistorted keypoints. OpenCV's RANSAC draws from a fixed seed: runs stay repeatable.
-    std::vector<cv::Point3d> object;
-    std::vector<cv::Point2d> image;
-    std::vector<int> feature;
-    for (size_t i = 0; i < frame.size(); ++i) {
-      const MapPoint* p = frame.map_points[i];
-      if (p == nullptr || p->bad) continue;
-      object.emplace_back(p->position.x(), p->position.y(), p->position.z());
-      image.emplace_back(frame.undistorted[i].x, frame.undistorted[i].y);
-      feature.push_back(static_cast<int>(i));
-    }
-    if (object.size() < 15) continue;
-    cv::Mat rvec, tvec;
-    std::vector<int> inliers;
-    if (!cv::solvePnPRansac(object, image, K, cv::noArray(), rvec, tvec, false, 200, 4.0f, 0.99,
-                            inliers, cv::SOLVEPNP_EPNP) ||
-        inliers.size() < 15) {
-      continue;
-    }
-    std::vector<uint8_t> keep(frame.size(), 0);
-    for (int k_in : inliers) keep[static_cast<size_t>(feature[static_cast<size_t>(k_in)])] = 1;
-    for (size_t i = 0; i < frame.size(); ++i) {
-      if (!keep[i]) frame.map_points[i] = nullptr;
-    }
-    cv::Matx33d R;
-    cv::Rodrigues(rvec, R);
-    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-    for (int r = 0; r < 3; ++r) {
-      for (int c = 0; c < 3; ++c) T.linear()(r, c) = R(r, c);
-      T.translation()(r) = tvec.at<double>(r);
-    }
-    frame.T_camera_world = T;
+    if (!PoseByPnp(frame)) continue;
     if (refine_pose(frame) >= 10) {
       *reference = kf;
       return true;
