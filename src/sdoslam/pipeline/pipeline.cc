@@ -315,12 +315,281 @@ class AheadStage {
   std::thread thread_;
 };
 
+// A CSV file's columns: each one's name beside how a row's value is written, so that the header
+// and the rows come from one list.
+template <class Row>
+struct CsvColumn {
+  const char* name;
+  std::function<std::string(const Row&)> format;
+};
+
+template <class Row>
+std::string CsvHeader(const std::vector<CsvColumn<Row>>& columns) {
+  std::string line;
+  for (size_t k = 0; k < columns.size(); ++k) {
+    if (k > 0) line += ',';
+    line += columns[k].name;
+  }
+  line += '\n';
+  return line;
+}
+
+template <class Row>
+void AppendCsvRow(const std::vector<CsvColumn<Row>>& columns, const Row& row, std::string* csv) {
+  for (size_t k = 0; k < columns.size(); ++k) {
+    if (k > 0) *csv += ',';
+    *csv += columns[k].format(row);
+  }
+  *csv += '\n';
+}
+
+// Column formats: a count or a name as is, milliseconds to 0.01, a flag as 0 or 1.
+std::string Plain(auto value) { return fmt::format("{}", value); }
+std::string Ms(double ms) { return fmt::format("{:.2f}", ms); }
+std::string Flag(bool flag) { return flag ? "1" : "0"; }
+
+// frames.csv: one row per frame.
+struct FrameRow {
+  size_t index;
+  const FrameOutput& out;
+  int dynamic_features;  // features labelled anything but static
+};
+
+const std::vector<CsvColumn<FrameRow>>& FrameColumns() {
+  using R = const FrameRow&;
+  static const std::vector<CsvColumn<FrameRow>> columns = {
+      {"index", [](R f) { return Plain(f.index); }},
+      {"timestamp", [](R f) { return fmt::format("{:.6f}", f.out.tracking.timestamp); }},
+      {"state", [](R f) { return std::string(ToString(f.out.tracking.state)); }},
+      {"features", [](R f) { return Plain(f.out.tracking.features); }},
+      {"features_with_depth", [](R f) { return Plain(f.out.tracking.features_with_depth); }},
+      {"dynamic_features", [](R f) { return Plain(f.dynamic_features); }},
+      {"matches", [](R f) { return Plain(f.out.tracking.matches); }},
+      {"inliers", [](R f) { return Plain(f.out.tracking.inliers); }},
+      {"keyframe", [](R f) { return Flag(f.out.tracking.keyframe); }},
+      {"check_iterations", [](R f) { return Plain(f.out.tracking.check_iterations); }},
+      {"check_converged", [](R f) { return Flag(f.out.tracking.check_converged); }},
+      {"check_reverted", [](R f) { return Flag(f.out.tracking.check_reverted); }},
+      {"check_measured", [](R f) { return Plain(f.out.tracking.check_measured); }},
+      {"check_dynamic", [](R f) { return Plain(f.out.tracking.check_dynamic); }},
+      {"culled_points", [](R f) { return Plain(f.out.tracking.culled_points); }},
+      {"front_end_ms", [](R f) { return Ms(f.out.front_end_timing.total()); }},
+      {"segment_ms", [](R f) { return Ms(f.out.front_end_timing.segment_ms); }},
+      {"detect_ms", [](R f) { return Ms(f.out.front_end_timing.detect_ms); }},
+      {"flow_ms", [](R f) { return Ms(f.out.front_end_timing.flow_ms); }},
+      {"classify_ms", [](R f) { return Ms(f.out.front_end_timing.classify_ms); }},
+      {"features_ms", [](R f) { return Ms(f.out.timing.features_ms); }},
+      {"tracking_ms", [](R f) { return Ms(f.out.timing.tracking_ms); }},
+      {"mapping_ms", [](R f) { return Ms(f.out.timing.mapping_ms); }},
+      {"keyframes", [](R f) { return Plain(f.out.tracking.keyframes_alive); }},
+      {"map_points", [](R f) { return Plain(f.out.tracking.map_points_alive); }},
+      {"check_rough_samples", [](R f) { return Plain(f.out.tracking.check_rough_samples); }},
+      {"check_static_samples", [](R f) { return Plain(f.out.tracking.check_static_samples); }},
+      {"check_replaced", [](R f) { return Flag(f.out.tracking.check_replaced); }},
+      {"latency_ms", [](R f) { return Ms(f.out.latency_ms); }},
+      {"lock_wait_ms", [](R f) { return Ms(f.out.timing.lock_wait_ms); }},
+      {"relocalized", [](R f) { return Flag(f.out.tracking.relocalized); }},
+      {"queued_ms", [](R f) { return Ms(f.out.queued_ms); }},
+      {"local_map_matches", [](R f) { return Plain(f.out.tracking.local_map_matches); }},
+      {"reference_matches", [](R f) { return Plain(f.out.tracking.reference_matches); }},
+      {"close_tracked", [](R f) { return Plain(f.out.tracking.close_tracked); }},
+      {"close_untracked", [](R f) { return Plain(f.out.tracking.close_untracked); }},
+  };
+  return columns;
+}
+
+// mapping.csv: one row per keyframe local mapping processed.
+const std::vector<CsvColumn<MappingRecord>>& MappingColumns() {
+  using R = const MappingRecord&;
+  static const std::vector<CsvColumn<MappingRecord>> columns = {
+      {"frame_index", [](R m) { return Plain(m.frame_index); }},
+      {"ms", [](R m) { return Ms(m.ms); }},
+      {"insert_ms", [](R m) { return Ms(m.result.insert_ms); }},
+      {"triangulate_ms", [](R m) { return Ms(m.result.triangulate_ms); }},
+      {"fuse_ms", [](R m) { return Ms(m.result.fuse_ms); }},
+      {"ba_ms", [](R m) { return Ms(m.result.ba_ms); }},
+      {"ba_solve_ms", [](R m) { return Ms(m.result.ba_solve_ms); }},
+      {"cull_ms", [](R m) { return Ms(m.result.cull_ms); }},
+      {"lock_wait_ms", [](R m) { return Ms(m.result.lock_wait_ms); }},
+      {"culled_points", [](R m) { return Plain(m.result.culled_points); }},
+      {"triangulated_points", [](R m) { return Plain(m.result.triangulated_points); }},
+      {"fused_points", [](R m) { return Plain(m.result.fused_points); }},
+      {"local_keyframes", [](R m) { return Plain(m.result.local_keyframes); }},
+      {"fixed_keyframes", [](R m) { return Plain(m.result.fixed_keyframes); }},
+      {"local_points", [](R m) { return Plain(m.result.local_points); }},
+      {"ba_observations", [](R m) { return Plain(m.result.ba.observations); }},
+      {"ba_iterations", [](R m) { return Plain(m.result.ba.iterations); }},
+      {"ba_stopped",
+       [](R m) {
+         const MappingResult& r = m.result;
+         return std::string(r.ba_spaced    ? "spaced"
+                            : r.ba_skipped ? "skipped"
+                            : r.ba.stopped ? "stopped"
+                                           : "");
+       }},
+      {"culled_keyframes", [](R m) { return Plain(m.result.culled_keyframes); }},
+      {"freed_points", [](R m) { return Plain(m.result.freed_points); }},
+      {"cpu_ms", [](R m) { return Ms(m.cpu_ms); }},
+  };
+  return columns;
+}
+
+// loops.csv: one row per loop closed.
+const std::vector<CsvColumn<LoopRecord>>& LoopColumns() {
+  using R = const LoopRecord&;
+  static const std::vector<CsvColumn<LoopRecord>> columns = {
+      {"frame_index", [](R l) { return Plain(l.frame_index); }},
+      {"loop_frame_index", [](R l) { return Plain(l.loop_frame_index); }},
+      {"matches", [](R l) { return Plain(l.matches); }},
+      {"inliers", [](R l) { return Plain(l.inliers); }},
+      {"projected_inliers", [](R l) { return Plain(l.projected_inliers); }},
+      {"fused_points", [](R l) { return Plain(l.fused_points); }},
+      {"graph_keyframes", [](R l) { return Plain(l.graph_keyframes); }},
+      {"graph_edges", [](R l) { return Plain(l.graph_edges); }},
+      {"correction_m", [](R l) { return fmt::format("{:.4f}", l.correction_m); }},
+      {"ms", [](R l) { return Ms(l.ms); }},
+      {"verify_ms", [](R l) { return Ms(l.verify_ms); }},
+      {"fuse_ms", [](R l) { return Ms(l.fuse_ms); }},
+      {"pose_graph_ms", [](R l) { return Ms(l.pose_graph_ms); }},
+      {"points_ms", [](R l) { return Ms(l.points_ms); }},
+      {"global_ba_observations", [](R l) { return Plain(l.global_ba_observations); }},
+      {"global_ba_ms", [](R l) { return Ms(l.global_ba_ms); }},
+      {"global_ba",
+       [](R l) {
+         return std::string(l.global_ba_skipped     ? "skipped"
+                            : l.global_ba_discarded ? "discarded"
+                            : l.global_ba_ms > 0    ? "run"
+                                                    : "off");
+       }},
+  };
+  return columns;
+}
+
+template <class Row>
+std::string Csv(const std::vector<CsvColumn<Row>>& columns, const std::vector<Row>& rows) {
+  std::string csv = CsvHeader(columns);
+  for (const Row& row : rows) AppendCsvRow(columns, row, &csv);
+  return csv;
+}
+
 // A frame as read from the dataset, with what oracle mode reads beside it.
 struct LoadedFrame {
   RgbdFrame frame;
   cv::Mat oracle;
   std::chrono::steady_clock::duration reading{};  // how long reading it took
 };
+
+// The timings of a run's frames, for its medians.
+struct RunTimings {
+  std::vector<double> frame_ms, front_end_ms, total_ms, latency_ms, queued_ms;
+  std::vector<double> segment_ms, detect_ms, flow_ms, classify_ms;
+
+  void Add(const FrameOutput& out, bool has_front_end) {
+    const FrontEndTiming& front = out.front_end_timing;
+    if (has_front_end) {
+      front_end_ms.push_back(front.total());
+      segment_ms.push_back(front.segment_ms);
+      detect_ms.push_back(front.detect_ms);
+      flow_ms.push_back(front.flow_ms);
+      classify_ms.push_back(front.classify_ms);
+    }
+    frame_ms.push_back(out.timing.features_ms + out.timing.tracking_ms);
+    total_ms.push_back(frame_ms.back() + front.total());
+    latency_ms.push_back(out.latency_ms);
+    queued_ms.push_back(out.queued_ms);
+  }
+  // The medians into `summary` (its mapping records already there).
+  void Summarize(RunSummary* summary) const {
+    std::vector<double> mapping_ms;
+    for (const MappingRecord& m : summary->mapping) mapping_ms.push_back(m.ms);
+    summary->median_latency_ms = ComputeErrorStats(latency_ms).median;
+    summary->median_queued_ms = ComputeErrorStats(queued_ms).median;
+    summary->median_frame_ms = ComputeErrorStats(frame_ms).median;
+    summary->median_front_end_ms = ComputeErrorStats(front_end_ms).median;
+    summary->median_front_end_stages = {
+        ComputeErrorStats(segment_ms).median, ComputeErrorStats(detect_ms).median,
+        ComputeErrorStats(flow_ms).median, ComputeErrorStats(classify_ms).median};
+    summary->median_total_ms = ComputeErrorStats(total_ms).median;
+    summary->median_mapping_ms = ComputeErrorStats(mapping_ms).median;
+  }
+};
+
+// Oracle mode reads each frame's ground-truth dynamic mask: all must be there before the first.
+void CheckOracleMasks(const std::filesystem::path& dataset,
+                      const std::vector<std::filesystem::path>& rgb_paths) {
+  for (const auto& rgb : rgb_paths) {
+    const auto path = dataset / "dynamic" / rgb.filename();
+    if (!std::filesystem::exists(path))
+      throw Error(path.string() +
+                  ": oracle mode needs the ground-truth dynamic masks of a "
+                  "synthetic sequence (sdoslam synth writes them)");
+  }
+}
+
+// Frame `index`'s overlay and mask (`name`: its image's file name), as the run asks for them;
+// the mask's features go to `feature_log` (features.csv).
+void SaveFrameImages(const RunOptions& run, const ResultSetWriter& results, size_t index,
+                     const std::string& name, const FrameOutput& out, std::string* feature_log) {
+  const TrackingResult& r = out.tracking;
+  const cv::Mat& labels = out.labels;
+  const cv::Size image_size(run.camera.width, run.camera.height);
+  if (run.save_overlays &&
+      (run.overlay_frames.empty() || std::find(run.overlay_frames.begin(), run.overlay_frames.end(),
+                                               index) != run.overlay_frames.end())) {
+    const cv::Mat empty_labels(image_size, CV_8U, cv::Scalar(0));
+    const cv::Mat overlay =
+        DrawOverlay(out.input.bgr, labels.empty() ? empty_labels : labels,
+                    out.sdo ? &*out.sdo : nullptr, r.feature_points, r.feature_labels);
+    const auto path = results.Stage("overlays/" + name);
+    if (!cv::imwrite(path.string(), overlay)) throw IoError(path.string() + ": cannot write");
+  }
+  if (run.save_masks) {
+    const cv::Mat empty_labels(image_size, CV_8U, cv::Scalar(0));
+    const auto path = results.Stage("masks/" + name);
+    if (!cv::imwrite(path.string(), labels.empty() ? empty_labels : labels))
+      throw IoError(path.string() + ": cannot write");
+    for (size_t k = 0; k < r.feature_points.size(); ++k) {
+      *feature_log += fmt::format("{},{:.2f},{:.2f},{}\n", index, r.feature_points[k].x,
+                                  r.feature_points[k].y, r.feature_labels[k]);
+    }
+  }
+}
+
+// The run's files (trajectories, config, logs, the map when asked for) staged in `results`.
+void WriteRunFiles(const RunOptions& run, const System& slam, const std::string& resolved_config,
+                   const std::string& frames_csv, const std::string& features_csv,
+                   ResultSetWriter& results, RunSummary* summary) {
+  WriteTumTrajectory(results.Stage("CameraTrajectory.txt"), summary->trajectory);
+  WriteTumTrajectory(results.Stage("KeyFrameTrajectory.txt"), summary->keyframe_trajectory);
+  results.WriteText("config.yaml", resolved_config);
+  results.WriteText("frames.csv", frames_csv);
+  results.WriteText("mapping.csv", Csv(MappingColumns(), summary->mapping));
+  results.WriteText("loops.csv", Csv(LoopColumns(), summary->loops));
+  if (run.save_masks) results.WriteText("features.csv", features_csv);
+  if (run.save_map) {
+    const std::vector<ColoredPoint> cloud = slam.StaticMapCloud();
+    summary->map_cloud_points = cloud.size();
+    const auto path = results.Stage("map.ply");
+    std::ofstream out(path, std::ios::binary);
+    WritePly(out, cloud,
+             {fmt::format("sdoslam {} static map, mode {}, world frame = first camera",
+                          SDOSLAM_VERSION, ToString(run.mode))});
+    out.close();
+    if (!out) throw IoError(path.string() + ": cannot write");
+  }
+}
+
+// ATE and RTE of the run's trajectories against the ground truth `gt`.
+void Evaluate(const Trajectory& gt, RunMode mode, RunSummary* summary) {
+  if (summary->trajectory.size() < 3) return;
+  summary->evaluation = EvaluateEstimate(gt, summary->trajectory, ToString(mode), {});
+  if (summary->keyframe_trajectory.size() >= 3) {
+    summary->keyframe_evaluation =
+        EvaluateEstimate(gt, summary->keyframe_trajectory, "keyframes", {});
+    summary->keyframe_ate_in_frame_alignment = ComputeAteUnderAlignment(
+        gt, summary->keyframe_trajectory, summary->evaluation->ate.alignment);
+  }
+}
 
 }  // namespace
 
@@ -343,15 +612,7 @@ RunSummary RunOnDataset(const RunOptions& options) {
   std::vector<std::filesystem::path> rgb_paths;
   for (size_t i = 0; i < summary.requested; ++i) rgb_paths.push_back(dataset.entries()[i].rgb_path);
 
-  if (run.mode == RunMode::kOracle) {
-    for (const auto& rgb : rgb_paths) {
-      const auto path = run.dataset / "dynamic" / rgb.filename();
-      if (!std::filesystem::exists(path))
-        throw Error(path.string() +
-                    ": oracle mode needs the ground-truth dynamic masks of a "
-                    "synthetic sequence (sdoslam synth writes them)");
-    }
-  }
+  if (run.mode == RunMode::kOracle) CheckOracleMasks(run.dataset, rgb_paths);
   std::optional<MaskEvaluator> mask_evaluator;
   if (run.evaluate_masks && run.mode != RunMode::kConventional &&
       std::filesystem::is_directory(run.dataset / "dynamic") &&
@@ -421,16 +682,9 @@ RunSummary RunOnDataset(const RunOptions& options) {
   std::optional<AheadStage<StagedFrame>> stage;
   if (prepare_ahead) stage.emplace(summary.requested, run.prepare_queue_capacity, prepare);
 
-  std::string log =
-      "index,timestamp,state,features,features_with_depth,dynamic_features,matches,inliers,"
-      "keyframe,check_iterations,check_converged,check_reverted,check_measured,check_dynamic,"
-      "culled_points,front_end_ms,segment_ms,detect_ms,flow_ms,classify_ms,features_ms,"
-      "tracking_ms,mapping_ms,keyframes,map_points,check_rough_samples,check_static_samples,"
-      "check_replaced,latency_ms,lock_wait_ms,relocalized,queued_ms,local_map_matches,"
-      "reference_matches,close_tracked,close_untracked\n";
+  std::string log = CsvHeader(FrameColumns());
   std::string feature_log = "index,x,y,label\n";
-  std::vector<double> frame_ms, front_end_ms, mapping_ms, total_ms, latency_ms, queued_ms;
-  std::vector<double> segment_ms, detect_ms, flow_ms, classify_ms;
+  RunTimings timings;
   int best_depth_features = 0;
   const auto run_start = std::chrono::steady_clock::now();
   for (size_t i = 0; i < summary.requested; ++i) {
@@ -449,15 +703,7 @@ RunSummary RunOnDataset(const RunOptions& options) {
     const bool has_front_end = staged->sdo.has_value();
     const FrameOutput out = pipeline.Finish(std::move(*staged));
     const TrackingResult& r = out.tracking;
-    const FrameTiming& timing = out.timing;
-    const FrontEndTiming& front_timing = out.front_end_timing;
-    if (has_front_end) {
-      front_end_ms.push_back(front_timing.total());
-      segment_ms.push_back(front_timing.segment_ms);
-      detect_ms.push_back(front_timing.detect_ms);
-      flow_ms.push_back(front_timing.flow_ms);
-      classify_ms.push_back(front_timing.classify_ms);
-    }
+    timings.Add(out, has_front_end);
     if (r.state == TrackingState::kNotInitialized) {
       best_depth_features = std::max(best_depth_features, r.features_with_depth);
       if (++summary.not_initialized >= 30 && slam.map().keyframes().empty()) {
@@ -470,50 +716,14 @@ RunSummary RunOnDataset(const RunOptions& options) {
     }
     const cv::Mat& labels = out.labels;
     summary.lost += r.state == TrackingState::kLost;
-    frame_ms.push_back(timing.features_ms + timing.tracking_ms);
-    total_ms.push_back(frame_ms.back() + front_timing.total());
-    latency_ms.push_back(out.latency_ms);
-    queued_ms.push_back(out.queued_ms);
     const int dynamic_features = static_cast<int>(std::count_if(
         r.feature_labels.begin(), r.feature_labels.end(), [](uint8_t l) { return l != 0; }));
-    log += fmt::format(
-        "{},{:.6f},{},{},{},{},{},{},{},{},{},{},{},{},{},"
-        "{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{},{},{},{},{},{:.2f},{:.2f},{},{:"
-        ".2f},{},{},{},{}\n",
-        i, r.timestamp, ToString(r.state), r.features, r.features_with_depth, dynamic_features,
-        r.matches, r.inliers, r.keyframe ? 1 : 0, r.check_iterations, r.check_converged ? 1 : 0,
-        r.check_reverted ? 1 : 0, r.check_measured, r.check_dynamic, r.culled_points,
-        front_timing.total(), front_timing.segment_ms, front_timing.detect_ms, front_timing.flow_ms,
-        front_timing.classify_ms, timing.features_ms, timing.tracking_ms, timing.mapping_ms,
-        r.keyframes_alive, r.map_points_alive, r.check_rough_samples, r.check_static_samples,
-        r.check_replaced ? 1 : 0, out.latency_ms, timing.lock_wait_ms, r.relocalized ? 1 : 0,
-        out.queued_ms, r.local_map_matches, r.reference_matches, r.close_tracked,
-        r.close_untracked);
+    AppendCsvRow(FrameColumns(), FrameRow{i, out, dynamic_features}, &log);
     if (r.relocalized) summary.relocalizations.push_back(i);
     if (!labels.empty() && mask_evaluator) {
       mask_evaluator->AddFrame(rgb_paths[i], labels, r.feature_points, r.feature_labels);
     }
-    const std::string name = rgb_paths[i].filename().string();
-    if (run.save_overlays && (run.overlay_frames.empty() ||
-                              std::find(run.overlay_frames.begin(), run.overlay_frames.end(), i) !=
-                                  run.overlay_frames.end())) {
-      const cv::Mat empty_labels(image_size, CV_8U, cv::Scalar(0));
-      const cv::Mat overlay =
-          DrawOverlay(out.input.bgr, labels.empty() ? empty_labels : labels,
-                      out.sdo ? &*out.sdo : nullptr, r.feature_points, r.feature_labels);
-      const auto path = results.Stage("overlays/" + name);
-      if (!cv::imwrite(path.string(), overlay)) throw IoError(path.string() + ": cannot write");
-    }
-    if (run.save_masks) {
-      const cv::Mat empty_labels(image_size, CV_8U, cv::Scalar(0));
-      const auto path = results.Stage("masks/" + name);
-      if (!cv::imwrite(path.string(), labels.empty() ? empty_labels : labels))
-        throw IoError(path.string() + ": cannot write");
-      for (size_t k = 0; k < r.feature_points.size(); ++k) {
-        feature_log += fmt::format("{},{:.2f},{:.2f},{}\n", i, r.feature_points[k].x,
-                                   r.feature_points[k].y, r.feature_labels[k]);
-      }
-    }
+    SaveFrameImages(run, results, i, rgb_paths[i].filename().string(), out, &feature_log);
     spdlog::debug("frame {} {} inliers {} keyframe {}", i, ToString(r.state), r.inliers,
                   r.keyframe);
     if (run.after_frame) run.after_frame(r, slam);
@@ -531,79 +741,17 @@ RunSummary RunOnDataset(const RunOptions& options) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - run_start).count();
   summary.wall_ms_per_frame =
       summary.frames > 0 ? 1000.0 * run_seconds / static_cast<double>(summary.frames) : 0;
-  summary.median_latency_ms = ComputeErrorStats(latency_ms).median;
-  summary.median_queued_ms = ComputeErrorStats(queued_ms).median;
   summary.trajectory = slam.CameraTrajectory();
   summary.mapping = slam.MappingRecords();
   summary.loops = slam.LoopRecords();
-  for (const MappingRecord& m : summary.mapping) mapping_ms.push_back(m.ms);
   summary.keyframe_trajectory = slam.KeyFrameTrajectory();
   summary.tracked = summary.trajectory.size();
   summary.keyframes = slam.map().GoodKeyFrames();
   summary.map_points = slam.map().GoodPoints();
-  summary.median_frame_ms = ComputeErrorStats(frame_ms).median;
-  summary.median_front_end_ms = ComputeErrorStats(front_end_ms).median;
-  summary.median_front_end_stages = {
-      ComputeErrorStats(segment_ms).median, ComputeErrorStats(detect_ms).median,
-      ComputeErrorStats(flow_ms).median, ComputeErrorStats(classify_ms).median};
-  summary.median_total_ms = ComputeErrorStats(total_ms).median;
-  summary.median_mapping_ms = ComputeErrorStats(mapping_ms).median;
+  timings.Summarize(&summary);
   if (mask_evaluator) summary.masks = mask_evaluator->result();
 
-  WriteTumTrajectory(results.Stage("CameraTrajectory.txt"), summary.trajectory);
-  WriteTumTrajectory(results.Stage("KeyFrameTrajectory.txt"), summary.keyframe_trajectory);
-  results.WriteText("config.yaml", resolved);
-  results.WriteText("frames.csv", log);
-  std::string mapping_log =
-      "frame_index,ms,insert_ms,triangulate_ms,fuse_ms,ba_ms,ba_solve_ms,cull_ms,lock_wait_ms,"
-      "culled_points,triangulated_points,fused_points,local_keyframes,fixed_keyframes,"
-      "local_points,ba_observations,ba_iterations,ba_stopped,culled_keyframes,freed_points,"
-      "cpu_ms\n";
-  for (const MappingRecord& m : summary.mapping) {
-    const MappingResult& r = m.result;
-    mapping_log += fmt::format(
-        "{},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{},{},{},{},{},{},{},{},{},{},{"
-        "},"
-        "{:.2f}\n",
-        m.frame_index, m.ms, r.insert_ms, r.triangulate_ms, r.fuse_ms, r.ba_ms, r.ba_solve_ms,
-        r.cull_ms, r.lock_wait_ms, r.culled_points, r.triangulated_points, r.fused_points,
-        r.local_keyframes, r.fixed_keyframes, r.local_points, r.ba.observations, r.ba.iterations,
-        r.ba_spaced    ? "spaced"
-        : r.ba_skipped ? "skipped"
-        : r.ba.stopped ? "stopped"
-                       : "",
-        r.culled_keyframes, r.freed_points, m.cpu_ms);
-  }
-  results.WriteText("mapping.csv", mapping_log);
-  std::string loop_log =
-      "frame_index,loop_frame_index,matches,inliers,projected_inliers,fused_points,"
-      "graph_keyframes,graph_edges,correction_m,ms,verify_ms,fuse_ms,pose_graph_ms,points_ms,"
-      "global_ba_observations,global_ba_ms,global_ba\n";
-  for (const LoopRecord& l : summary.loops) {
-    const char* global_ba = l.global_ba_skipped     ? "skipped"
-                            : l.global_ba_discarded ? "discarded"
-                            : l.global_ba_ms > 0    ? "run"
-                                                    : "off";
-    loop_log += fmt::format(
-        "{},{},{},{},{},{},{},{},{:.4f},{:.2f},{:.2f},{:.2f},{:.2f},{:.2f},{},{:.2f},{}\n",
-        l.frame_index, l.loop_frame_index, l.matches, l.inliers, l.projected_inliers,
-        l.fused_points, l.graph_keyframes, l.graph_edges, l.correction_m, l.ms, l.verify_ms,
-        l.fuse_ms, l.pose_graph_ms, l.points_ms, l.global_ba_observations, l.global_ba_ms,
-        global_ba);
-  }
-  results.WriteText("loops.csv", loop_log);
-  if (run.save_masks) results.WriteText("features.csv", feature_log);
-  if (run.save_map) {
-    const std::vector<ColoredPoint> cloud = slam.StaticMapCloud();
-    summary.map_cloud_points = cloud.size();
-    const auto path = results.Stage("map.ply");
-    std::ofstream out(path, std::ios::binary);
-    WritePly(out, cloud,
-             {fmt::format("sdoslam {} static map, mode {}, world frame = first camera",
-                          SDOSLAM_VERSION, ToString(run.mode))});
-    out.close();
-    if (!out) throw IoError(path.string() + ": cannot write");
-  }
+  WriteRunFiles(run, slam, resolved, log, feature_log, results, &summary);
   // The loop sees a stop only before a frame: one that came during the last frame, while mapping
   // finished or while the files were staged ended no loop early, yet the user asked to stop and
   // must not be told "complete" with exit 0 after seeing "interrupted" printed.
@@ -616,16 +764,7 @@ RunSummary RunOnDataset(const RunOptions& options) {
                   {"frames_tracked", summary.tracked},
                   {"sdoslam_version", SDOSLAM_VERSION}});
 
-  if (dataset.ground_truth() && summary.trajectory.size() >= 3) {
-    const Trajectory& gt = *dataset.ground_truth();
-    summary.evaluation = EvaluateEstimate(gt, summary.trajectory, ToString(run.mode), {});
-    if (summary.keyframe_trajectory.size() >= 3) {
-      summary.keyframe_evaluation =
-          EvaluateEstimate(gt, summary.keyframe_trajectory, "keyframes", {});
-      summary.keyframe_ate_in_frame_alignment = ComputeAteUnderAlignment(
-          gt, summary.keyframe_trajectory, summary.evaluation->ate.alignment);
-    }
-  }
+  if (dataset.ground_truth()) Evaluate(*dataset.ground_truth(), run.mode, &summary);
   return summary;
 }
 
