@@ -479,6 +479,162 @@ struct LoadedFrame {
   std::chrono::steady_clock::duration reading{};  // how long reading it took
 };
 
+// A run's frames, read and prepared (the front end, the features) for tracking, in order.
+// Threaded runs read one frame ahead in a thread of their own and prepare frames ahead in
+// another (the front end and feature extraction of frame k + 1 overlap the tracking of frame
+// k); sequential runs do both inline.
+class StagedFrames {
+ public:
+  StagedFrames(const RunOptions& run, const RgbdDataset& dataset,
+               const std::vector<std::filesystem::path>& rgb_paths, bool ahead, Pipeline* pipeline)
+      : run_(run),
+        dataset_(dataset),
+        rgb_paths_(rgb_paths),
+        pipeline_(pipeline),
+        paced_from_(std::chrono::steady_clock::now()),
+        frame_period_(std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+            std::chrono::duration<double>(1.0 / run.camera.fps))) {
+    if (!ahead) return;
+    // Decoding the PNGs (5 ms of CPU a frame) in the preparing stage left a core idle whenever
+    // tracking and mapping had nothing to do. At nice 10 the reader takes a core only when the
+    // stages after it leave one free, which is when its frame is needed anyway (bench
+    // --threaded, 3 alternated rounds: the mixed play's sdo 45.0-45.4 -> 47.4-49.7 fps,
+    // conventional 73.5-74.9 -> 112-115; at nice 0 sdo gained half as much).
+    loader_.emplace(
+        rgb_paths.size(), 1, [this](size_t i) { return Load(i); }, /*nice=*/10);
+    stage_.emplace(rgb_paths.size(), run.prepare_queue_capacity,
+                   [this](size_t i) { return Prepare(i); });
+  }
+  // Frame i, the frames taken in order; nullopt only when a stage ended early.
+  std::optional<StagedFrame> Next(size_t i) {
+    if (stage_) return stage_->Next();
+    return Prepare(i);
+  }
+  // Stops reading and preparing (an interrupted run).
+  void Stop() {
+    stage_.reset();
+    loader_.reset();
+  }
+
+ private:
+  // Reading frame i (colour and depth, and in oracle mode its ground-truth labels).
+  // camera_rate: frame i is read no earlier than i frame periods after the first, as a camera
+  // would deliver it (a sleep, not a wait in a loop).
+  LoadedFrame Load(size_t i) const {
+    if (run_.camera_rate)
+      std::this_thread::sleep_until(paced_from_ + static_cast<int64_t>(i) * frame_period_);
+    LoadedFrame loaded;
+    const auto start = std::chrono::steady_clock::now();
+    loaded.frame = dataset_.Load(i);
+    if (run_.mode == RunMode::kOracle) {
+      loaded.oracle = LoadOracleLabels(run_.dataset, rgb_paths_[i],
+                                       cv::Size(run_.camera.width, run_.camera.height));
+    }
+    loaded.reading = std::chrono::steady_clock::now() - start;
+    return loaded;
+  }
+  StagedFrame Prepare(size_t i) {
+    std::optional<LoadedFrame> loaded;
+    if (loader_) {
+      loaded = loader_->Next();
+      if (!loaded) throw Error("the frame reader stopped early");  // Next() throws its reason
+    } else {
+      loaded = Load(i);
+    }
+    // The latency a camera would see counts the frame's reading, but not the time a frame read
+    // ahead waited for this stage: a camera's frame arrives when it is taken.
+    const auto started = std::chrono::steady_clock::now() - loaded->reading;
+    RgbdFrame& frame = loaded->frame;
+    StagedFrame staged = pipeline_->Prepare(
+        RgbdInput{i, frame.timestamp, std::move(frame.bgr), std::move(frame.depth), rgb_paths_[i]},
+        loaded->oracle);
+    staged.started = started;
+    return staged;
+  }
+
+  const RunOptions& run_;
+  const RgbdDataset& dataset_;
+  const std::vector<std::filesystem::path>& rgb_paths_;
+  Pipeline* pipeline_;
+  const std::chrono::steady_clock::time_point paced_from_;
+  const std::chrono::steady_clock::duration frame_period_;
+  // The stage is stopped before the reader it takes its frames from.
+  std::optional<AheadStage<LoadedFrame>> loader_;
+  std::optional<AheadStage<StagedFrame>> stage_;
+};
+
+// The pipeline a run over `rgb_paths` needs; `prepare_ahead`: frames are prepared in a thread
+// of their own, feature extraction beside the front end.
+PipelineOptions PipelineOptionsOf(const RunOptions& run,
+                                  const std::vector<std::filesystem::path>& rgb_paths,
+                                  bool prepare_ahead) {
+  PipelineOptions options;
+  options.camera = run.camera;
+  options.slam = run.slam;
+  options.front_end = run.front_end;
+  options.mode = run.mode;
+  options.dataset_folder = run.dataset;
+  options.rgb_paths = rgb_paths;
+  options.extract_beside_front_end = prepare_ahead;
+  return options;
+}
+
+// A frame `r` that did not start the map: after 30 of them with no map yet, the run ends with
+// what the best of them lacked (`best_depth_features`: the most features with depth so far).
+void CountNotInitialized(const RunOptions& run, const System& slam, const TrackingResult& r,
+                         int* best_depth_features, RunSummary* summary) {
+  *best_depth_features = std::max(*best_depth_features, r.features_with_depth);
+  if (++summary->not_initialized >= 30 && slam.map().keyframes().empty()) {
+    throw Error(
+        fmt::format("{}: the first {} frames have too little depth to start the map (best: {} "
+                    "features with depth, {} needed)",
+                    run.dataset.string(), summary->not_initialized, *best_depth_features,
+                    run.slam.tracking.min_initial_depth_features));
+  }
+}
+
+// The trajectories, the mapping and loop records and the map's size, once SLAM has shut down.
+void CollectFromSlam(const System& slam, RunSummary* summary) {
+  summary->trajectory = slam.CameraTrajectory();
+  summary->mapping = slam.MappingRecords();
+  summary->loops = slam.LoopRecords();
+  summary->keyframe_trajectory = slam.KeyFrameTrajectory();
+  summary->tracked = summary->trajectory.size();
+  summary->keyframes = slam.map().GoodKeyFrames();
+  summary->map_points = slam.map().GoodPoints();
+}
+
+// Whether the run scores its masks: the front end's, against a synthetic sequence's ground truth.
+bool EvaluatesMasks(const RunOptions& run) {
+  return run.evaluate_masks && run.mode != RunMode::kConventional &&
+         std::filesystem::is_directory(run.dataset / "dynamic") &&
+         std::filesystem::is_directory(run.dataset / "instance");
+}
+
+// Where a run started at `run_start` stands after frame `r`.
+RunProgress Progress(const RunSummary& summary, std::chrono::steady_clock::time_point run_start,
+                     const TrackingResult& r) {
+  return {summary.frames, summary.requested,
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - run_start).count(),
+          r.state, r.keyframes_alive};
+}
+
+// Makes the staged files the run's result set, marked complete or interrupted.
+void CommitRun(const RunOptions& run, RunSummary* run_summary, ResultSetWriter* results) {
+  // The frame loop sees a stop only before a frame: one that came during the last frame, while
+  // mapping finished or while the files were staged ended no loop early, yet the user asked to
+  // stop and must not be told "complete" with exit 0 after seeing "interrupted" printed.
+  if (run.stop_requested && run.stop_requested()) run_summary->interrupted = true;
+  const RunSummary& summary = *run_summary;
+  results->Commit(summary.interrupted ? "interrupted" : "complete",
+                  {{"mode", ToString(run.mode)},
+                   {"dataset", std::filesystem::absolute(run.dataset).lexically_normal().string()},
+                   {"frames_requested", summary.requested},
+                   {"frames_processed", summary.frames},
+                   {"frames_tracked", summary.tracked},
+                   {"sdoslam_version", SDOSLAM_VERSION}});
+}
+
 // The timings of a run's frames, for its medians.
 struct RunTimings {
   std::vector<double> frame_ms, front_end_ms, total_ms, latency_ms, queued_ms;
@@ -608,79 +764,20 @@ RunSummary RunOnDataset(const RunOptions& options) {
   RunSummary summary;
   summary.requested =
       run.max_frames > 0 ? std::min(dataset.size(), run.max_frames) : dataset.size();
-  const cv::Size image_size(run.camera.width, run.camera.height);
   std::vector<std::filesystem::path> rgb_paths;
   for (size_t i = 0; i < summary.requested; ++i) rgb_paths.push_back(dataset.entries()[i].rgb_path);
 
   if (run.mode == RunMode::kOracle) CheckOracleMasks(run.dataset, rgb_paths);
   std::optional<MaskEvaluator> mask_evaluator;
-  if (run.evaluate_masks && run.mode != RunMode::kConventional &&
-      std::filesystem::is_directory(run.dataset / "dynamic") &&
-      std::filesystem::is_directory(run.dataset / "instance")) {
-    mask_evaluator.emplace(run.dataset);
-  }
+  if (EvaluatesMasks(run)) mask_evaluator.emplace(run.dataset);
 
   const std::string resolved = ResolvedConfig(run);
 
   // Everything that can be wrong with the front end's inputs fails here, before the first frame.
-  PipelineOptions pipeline_options;
-  pipeline_options.camera = run.camera;
-  pipeline_options.slam = run.slam;
-  pipeline_options.front_end = run.front_end;
-  pipeline_options.mode = run.mode;
-  pipeline_options.dataset_folder = run.dataset;
-  pipeline_options.rgb_paths = rgb_paths;
   const bool prepare_ahead = run.prepare_ahead.value_or(!run.slam.sequential);
-  pipeline_options.extract_beside_front_end = prepare_ahead;
-  Pipeline pipeline(pipeline_options);
+  Pipeline pipeline(PipelineOptionsOf(run, rgb_paths, prepare_ahead));
   const System& slam = pipeline.slam();
-  // Reading frame i (colour and depth, and in oracle mode its ground-truth labels).
-  // camera_rate: frame i is read no earlier than i frame periods after the first, as a camera
-  // would deliver it (a sleep, not a wait in a loop).
-  const auto paced_from = std::chrono::steady_clock::now();
-  const auto frame_period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-      std::chrono::duration<double>(1.0 / run.camera.fps));
-  auto load = [&](size_t i) {
-    if (run.camera_rate)
-      std::this_thread::sleep_until(paced_from + static_cast<int64_t>(i) * frame_period);
-    LoadedFrame loaded;
-    const auto start = std::chrono::steady_clock::now();
-    loaded.frame = dataset.Load(i);
-    if (run.mode == RunMode::kOracle)
-      loaded.oracle = LoadOracleLabels(run.dataset, rgb_paths[i], image_size);
-    loaded.reading = std::chrono::steady_clock::now() - start;
-    return loaded;
-  };
-  // Threaded runs read frames ahead in a thread of their own, one frame ahead of the preparing
-  // stage: decoding the PNGs (5 ms of CPU a frame) in that stage left a core idle whenever
-  // tracking and mapping had nothing to do. At nice 10 the reader takes a core only when the
-  // stages after it leave one free, which is when its frame is needed anyway (bench --threaded,
-  // 3 alternated rounds: the mixed play's sdo 45.0-45.4 -> 47.4-49.7 fps, conventional
-  // 73.5-74.9 -> 112-115; at nice 0 sdo gained half as much).
-  std::optional<AheadStage<LoadedFrame>> loader;
-  if (prepare_ahead) loader.emplace(summary.requested, 1, load, /*nice=*/10);
-  auto prepare = [&](size_t i) {
-    std::optional<LoadedFrame> loaded;
-    if (loader) {
-      loaded = loader->Next();
-      if (!loaded) throw Error("the frame reader stopped early");  // Next() throws its reason
-    } else {
-      loaded = load(i);
-    }
-    // The latency a camera would see counts the frame's reading, but not the time a frame read
-    // ahead waited for this stage: a camera's frame arrives when it is taken.
-    const auto started = std::chrono::steady_clock::now() - loaded->reading;
-    RgbdFrame& frame = loaded->frame;
-    StagedFrame staged = pipeline.Prepare(
-        RgbdInput{i, frame.timestamp, std::move(frame.bgr), std::move(frame.depth), rgb_paths[i]},
-        loaded->oracle);
-    staged.started = started;
-    return staged;
-  };
-  // Threaded runs prepare frames ahead in a thread of their own (the front end and feature
-  // extraction of frame k + 1 overlap the tracking of frame k); sequential runs stay inline.
-  std::optional<AheadStage<StagedFrame>> stage;
-  if (prepare_ahead) stage.emplace(summary.requested, run.prepare_queue_capacity, prepare);
+  StagedFrames frames(run, dataset, rgb_paths, prepare_ahead, &pipeline);
 
   std::string log = CsvHeader(FrameColumns());
   std::string feature_log = "index,x,y,label\n";
@@ -692,28 +789,15 @@ RunSummary RunOnDataset(const RunOptions& options) {
       summary.interrupted = true;
       break;
     }
-    std::optional<StagedFrame> staged;
-    if (stage) {
-      staged = stage->Next();
-      if (!staged) break;  // cannot happen unless the stage ended early, which Next() throws
-    } else {
-      staged = prepare(i);
-    }
+    std::optional<StagedFrame> staged = frames.Next(i);
+    if (!staged) break;  // cannot happen unless the stage ended early, which Next() throws
     summary.frames = i + 1;
     const bool has_front_end = staged->sdo.has_value();
     const FrameOutput out = pipeline.Finish(std::move(*staged));
     const TrackingResult& r = out.tracking;
     timings.Add(out, has_front_end);
-    if (r.state == TrackingState::kNotInitialized) {
-      best_depth_features = std::max(best_depth_features, r.features_with_depth);
-      if (++summary.not_initialized >= 30 && slam.map().keyframes().empty()) {
-        throw Error(
-            fmt::format("{}: the first {} frames have too little depth to start the map (best: {} "
-                        "features with depth, {} needed)",
-                        run.dataset.string(), summary.not_initialized, best_depth_features,
-                        run.slam.tracking.min_initial_depth_features));
-      }
-    }
+    if (r.state == TrackingState::kNotInitialized)
+      CountNotInitialized(run, slam, r, &best_depth_features, &summary);
     const cv::Mat& labels = out.labels;
     summary.lost += r.state == TrackingState::kLost;
     const int dynamic_features = static_cast<int>(std::count_if(
@@ -727,42 +811,20 @@ RunSummary RunOnDataset(const RunOptions& options) {
     spdlog::debug("frame {} {} inliers {} keyframe {}", i, ToString(r.state), r.inliers,
                   r.keyframe);
     if (run.after_frame) run.after_frame(r, slam);
-    if (run.progress) {
-      run.progress(
-          {summary.frames, summary.requested,
-           std::chrono::duration<double>(std::chrono::steady_clock::now() - run_start).count(),
-           r.state, r.keyframes_alive});
-    }
+    if (run.progress) run.progress(Progress(summary, run_start, r));
   }
-  stage.reset();               // an interrupted run stops preparing frames
-  loader.reset();              // ... and reading them
+  frames.Stop();               // an interrupted run stops reading and preparing frames
   pipeline.slam().Shutdown();  // the mapping thread finishes the queued keyframes
   const double run_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - run_start).count();
   summary.wall_ms_per_frame =
       summary.frames > 0 ? 1000.0 * run_seconds / static_cast<double>(summary.frames) : 0;
-  summary.trajectory = slam.CameraTrajectory();
-  summary.mapping = slam.MappingRecords();
-  summary.loops = slam.LoopRecords();
-  summary.keyframe_trajectory = slam.KeyFrameTrajectory();
-  summary.tracked = summary.trajectory.size();
-  summary.keyframes = slam.map().GoodKeyFrames();
-  summary.map_points = slam.map().GoodPoints();
+  CollectFromSlam(slam, &summary);
   timings.Summarize(&summary);
   if (mask_evaluator) summary.masks = mask_evaluator->result();
 
   WriteRunFiles(run, slam, resolved, log, feature_log, results, &summary);
-  // The loop sees a stop only before a frame: one that came during the last frame, while mapping
-  // finished or while the files were staged ended no loop early, yet the user asked to stop and
-  // must not be told "complete" with exit 0 after seeing "interrupted" printed.
-  if (run.stop_requested && run.stop_requested()) summary.interrupted = true;
-  results.Commit(summary.interrupted ? "interrupted" : "complete",
-                 {{"mode", ToString(run.mode)},
-                  {"dataset", std::filesystem::absolute(run.dataset).lexically_normal().string()},
-                  {"frames_requested", summary.requested},
-                  {"frames_processed", summary.frames},
-                  {"frames_tracked", summary.tracked},
-                  {"sdoslam_version", SDOSLAM_VERSION}});
+  CommitRun(run, &summary, &results);
 
   if (dataset.ground_truth()) Evaluate(*dataset.ground_truth(), run.mode, &summary);
   return summary;
