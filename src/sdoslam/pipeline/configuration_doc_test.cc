@@ -56,8 +56,8 @@ std::map<std::string, Shown> DocumentedKeys() {
   const std::string doc = text.str();
   std::map<std::string, Shown> keys;
   const std::regex block("```yaml\\n([\\s\\S]*?)```");
-  for (auto it = std::sregex_iterator(doc.begin(), doc.end(), block);
-       it != std::sregex_iterator(); ++it) {
+  for (auto it = std::sregex_iterator(doc.begin(), doc.end(), block); it != std::sregex_iterator();
+       ++it) {
     Flatten(YAML::Load((*it)[1].str()), "", &keys);
   }
   return keys;
@@ -97,8 +97,8 @@ TEST(ConfigurationReference, ShowsEverySettingWithItsDefaultAndNothingElse) {
   // camera: shows an example camera, not defaults; its keys are CameraOptions', read elsewhere.
   for (const auto& [path, shown] : documented) {
     if (path.rfind("camera.", 0) == 0) continue;
-    EXPECT_TRUE(settings.count(path)) << "docs/configuration.md shows " << path
-                                      << ", which is no setting";
+    EXPECT_TRUE(settings.count(path))
+        << "docs/configuration.md shows " << path << ", which is no setting";
   }
 }
 
