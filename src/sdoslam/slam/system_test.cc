@@ -129,6 +129,26 @@ TEST(SlamThreaded, MappingThreadGivesAnAccurateTrajectoryAndStopsCleanly) {
   SUCCEED();
 }
 
+// 40 frames of the synthetic static room (xyz motion), loaded beforehand, so that a threaded test
+// can feed them as fast as tracking takes them.
+std::vector<RgbdFrame> PreloadedStaticRoom() {
+  testing::TempDir dir;
+  RenderStaticRoom(dir, synth::CameraMotion::kXyz, 40);
+  const TumDataset dataset(dir / "seq", synth::SyntheticCamera());
+  std::vector<RgbdFrame> frames;
+  for (size_t i = 0; i < dataset.size(); ++i) frames.push_back(dataset.Load(i));
+  return frames;
+}
+
+// Threaded, with a keyframe asked for at every tracked frame (too few close points tracked).
+SlamOptions ThreadedWithAKeyFrameAskedForAtEveryFrame() {
+  SlamOptions options;
+  options.sequential = false;
+  options.tracking.min_close_points = 100000;
+  options.tracking.close_points_to_create = 0;
+  return options;
+}
+
 // Threaded, a keyframe that arrives while local BA runs stops it, and one already waiting when
 // it would start skips it (as ORB-SLAM2's local mapping gives way). A stop needs System to raise
 // the mapper's flag when it queues the keyframe (the mapping thread itself only sees the queue
@@ -137,19 +157,12 @@ TEST(SlamThreaded, MappingThreadGivesAnAccurateTrajectoryAndStopsCleanly) {
 // keyframes arrive during local BA: 13-17 of 20 BAs stopped on this machine, also with six
 // copies of the test running at once. With the option off none gives way.
 TEST(SlamThreaded, ANewKeyFrameStopsOrSkipsLocalBundleAdjustmentUnlessTurnedOff) {
-  testing::TempDir dir;
-  RenderStaticRoom(dir, synth::CameraMotion::kXyz, 40);
-  const TumDataset dataset(dir / "seq", synth::SyntheticCamera());
-  std::vector<RgbdFrame> frames;
-  for (size_t i = 0; i < dataset.size(); ++i) frames.push_back(dataset.Load(i));
+  const std::vector<RgbdFrame> frames = PreloadedStaticRoom();
   struct GaveWay {
     size_t keyframes = 0, stopped = 0, skipped = 0;
   };
   const auto run = [&](bool stop_for_new_keyframe) {
-    SlamOptions options;
-    options.sequential = false;
-    options.tracking.min_close_points = 100000;  // a keyframe asked for at every frame
-    options.tracking.close_points_to_create = 0;
+    SlamOptions options = ThreadedWithAKeyFrameAskedForAtEveryFrame();
     options.mapping.stop_ba_for_new_keyframe = stop_for_new_keyframe;
     // Tracking does not wait for mapping, as at a live camera's rate: with the lead bounded it
     // waits before the keyframe that would stop the BA.
@@ -183,19 +196,12 @@ TEST(SlamThreaded, ANewKeyFrameStopsOrSkipsLocalBundleAdjustmentUnlessTurnedOff)
 // loaded beforehand, are fed as fast as tracking takes them, so that tracking (milliseconds a
 // frame) would outrun local mapping (tens of milliseconds a keyframe).
 TEST(SlamThreaded, TrackingRunsNoFurtherAheadOfLocalMappingThanTheLeadAllows) {
-  testing::TempDir dir;
-  RenderStaticRoom(dir, synth::CameraMotion::kXyz, 40);
-  const TumDataset dataset(dir / "seq", synth::SyntheticCamera());
-  std::vector<RgbdFrame> frames;
-  for (size_t i = 0; i < dataset.size(); ++i) frames.push_back(dataset.Load(i));
+  const std::vector<RgbdFrame> frames = PreloadedStaticRoom();
   struct Lag {
     size_t largest = 0, keyframes = 0;
   };
   const auto run = [&](int lead) {
-    SlamOptions options;
-    options.sequential = false;
-    options.tracking.min_close_points = 100000;  // a keyframe asked for at every frame
-    options.tracking.close_points_to_create = 0;
+    SlamOptions options = ThreadedWithAKeyFrameAskedForAtEveryFrame();
     options.mapping.max_tracking_lead = lead;
     System slam(synth::SyntheticCamera(), options);
     Lag lag;
