@@ -16,71 +16,48 @@ struct LocalMapperOptions {
   int triangulation_neighbours = 10;  // covisible keyframes to triangulate new points with
   double min_found_ratio = 0.25;      // recent points found less often than this are culled
   double redundant_ratio = 0.9;       // keyframes with this share of redundant points are culled
-  // In that share, points past their probation (three keyframes) that at most this many keyframes
-  // observe do not count: a place seen once or twice is a mover's trace or noise, and would keep
-  // its keyframe forever. ORB-SLAM2 counts every point (0 here). With 2, a conventional run among
-  // walking people keeps 88 keyframes at frame 1,000 instead of 340 (README.md's git history, Long
-  // runs); sdo's maps, where movers leave no points, barely change.
+  // In that share, points past their probation that at most this many keyframes observe do not
+  // count: a place seen once or twice is a mover's trace or noise, and would keep its keyframe
+  // forever (ORB-SLAM2: 0). Measured in docs/results.md, Long runs.
   int transient_observations = 2;
-  // A bound on keyframes per viewpoint, for maps that the rules above leave growing: where
-  // tracking stays weak (conventional mode among walking people) nearly every frame becomes a
-  // keyframe, each holds points that keep it, and a camera that never left one room had 88
-  // keyframes alive at frame 1,000 and 162 at 3,000. So when a keyframe is inserted, the older
-  // keyframes whose camera lies within `crowded_distance` metres of its own and looks within
-  // `crowded_angle_deg` of its direction make a crowd; past `crowded_keyframes` (the new one
-  // included), the members with the largest share of redundant points are culled, the older
-  // first on a tie. A fixed distance is wrong for small moves: in the real-background plays
-  // (a desk recording played forward and back) sdo's keyframes lie 1 cm apart and a crowd of
-  // 3 within 5 cm cost 84 -> 97 mm summed, so the crowd is a whole place (1 m, 60 degrees) and
-  // its quota above what sdo's maps hold there (18-27 keyframes alive). 0 turns the rule off.
+  // Keyframes per place: when a keyframe is inserted, the older ones within `crowded_distance`
+  // metres and `crowded_angle_deg` of its view make a crowd, and past `crowded_keyframes` the most
+  // redundant are culled. Where tracking stays weak nearly every frame becomes a keyframe, and a
+  // camera that never leaves a room would grow its map without end. A place is a whole room
+  // view, not a few centimetres: sdo's keyframes on slow footage lie 1 cm apart.
   double crowded_distance = 1.0;
   double crowded_angle_deg = 60;
   int crowded_keyframes = 30;
-  // The local window, so that a keyframe's cost follows the place, not the length of the run: local
-  // BA refines the new keyframe and its `local_keyframes` most covisible neighbours (keyframe
-  // culling looks at those same neighbours), holding fixed the `fixed_keyframes` other keyframes
-  // that observe most of the window's points. Observations from keyframes outside both sets are
-  // left out of the adjustment. 10 rather than 20: where movers hide much of the room, sdo makes a
-  // keyframe every 3 frames, and 20 neighbours made each BA cost 30+ ms; with 10, sdo's ATE over 13
-  // real-frame sequences is 68.9 against 70.6 mm summed, and the 3,000-frame walking_xyz soak's
-  // keyframes 2.8 against 3.5 mm (README.md's git history, Long runs).
+  // The local window, so that a keyframe's cost follows the place, not the run's length: local BA
+  // refines the new keyframe and its `local_keyframes` most covisible neighbours, holding fixed
+  // the `fixed_keyframes` other keyframes that observe most of the window's points; observations
+  // from keyframes outside both are left out. 10, not ORB-SLAM2's 20: where movers hide much of
+  // the room sdo makes a keyframe every 3 frames.
   int local_keyframes = 10;
   int fixed_keyframes = 10;
-  // A local BA's cost follows its observations. In a room the camera never leaves, the bounded
-  // map's points keep gaining observers: a window of 20 keyframes grew from 9,000 to 11,400
-  // observations over 3,000 frames, and its BA from 77 to 110 ms. So the window takes
-  // neighbours (most covisible first, up to three quarters of this budget) and then fixed
-  // keyframes only while their observations stay within it. 8,000 rather than 10,000: over
-  // 3,000 frames of walking_xyz (sdo) it holds the mapping time flat after the first 500 frames
-  // (median 58 -> 71 ms sequential, 62 -> 78 threaded, against 60 -> 85 and 75 -> 131) with
-  // the same frame ATE (5.3 against 5.2 mm); static_room's frames stay at 4.2 mm.
+  // A local BA's cost follows its observations, which keep growing in a room the camera never
+  // leaves: the window takes neighbours (up to three quarters of this budget), then fixed
+  // keyframes while their observations fit. Keeps mapping time flat over long runs
+  // (docs/results.md, Long runs).
   int max_ba_observations = 8000;
   BundleAdjustmentOptions bundle_adjustment;
   // Threaded mapping (System): tracking makes no keyframe while this many wait for local mapping.
   int max_queued_keyframes = 3;
   // Threaded mapping: tracking waits before frame k while local mapping has not finished a
   // keyframe made before frame k − max_tracking_lead (0: never waits). Read from files, tracking
-  // outruns mapping: it tracks a frame in 10-20 ms where a camera gives one every 33, mapping a
-  // keyframe takes 30-60 ms, and on fast hand-held motion tracking then leans on a map that lags
-  // behind the view, skips keyframes while mapping is busy and stops its bundle adjustments.
-  // A camera gives mapping that time; so does this bound, without sleeping when mapping keeps up.
+  // outruns mapping and leans on a map that lags behind a fast-turning view; a camera gives
+  // mapping that time, and so does this bound, without sleeping when mapping keeps up
+  // (docs/configuration.md).
   int max_tracking_lead = 1;
   // Threaded mapping: a keyframe that arrives while local BA solves stops it after the iteration
-  // under way (its solution so far is kept), and a keyframe already waiting when the BA would
-  // start skips it, as ORB-SLAM2's local mapping does: the next keyframe's BA covers nearly the
-  // same window. Where movers hide much of the room sdo makes a keyframe every 3 frames and each
-  // BA took 30-70 ms of CPU (mapping.csv, the mixed play threaded). Sequential runs never stop a
-  // BA.
+  // under way (its solution so far is kept), and one already waiting when the BA would start
+  // skips it, as ORB-SLAM2's local mapping does: the next keyframe's BA covers nearly the same
+  // window. Sequential runs never stop a BA.
   bool stop_ba_for_new_keyframe = true;
   // A keyframe made fewer than this many frames after the last keyframe whose local BA ran gets
-  // none (0 or 1: every keyframe gets one); the next keyframe's BA covers nearly the same window.
-  // 3: where movers hide much of the room sdo makes a keyframe every second frame, and each BA then
-  // solves almost the window of the one before. On the mixed play 27 keyframes get 20 BAs instead
-  // of 25-27, local BA's instructions fall 40 % (callgrind, 40 frames: 2.58 -> 1.55 G) and threaded
-  // sdo's process CPU 7 % (3.12 -> 2.90 s, medians of 5); accuracy the same (scripts/plays.sh 79.7
-  // -> 79.6 mm, held-out seeds 4-6 49.8 -> 49.6, fr2_desk_50 byte for byte, 3,000 frames of
-  // walking_xyz 4.4 -> 4.6 mm). 5: the plays 79.3 but the held-out seeds 50.7 (person_fills_view
-  // seed 4 5.3 -> 6.6). README.md's git history, "Local BA once in three frames".
+  // none (0 or 1: every keyframe gets one): where movers hide much of the room sdo makes a
+  // keyframe every second frame, and each BA would solve almost the window of the one before.
+  // 3 saves 40 % of local BA's work at the same accuracy (docs/performance.md).
   int min_frames_between_local_ba = 3;
   void Check(const std::string& path = "mapping.") const;  // Error names path + setting
   // Every setting, as its config key (core/config.h: ReadFields, WriteFields).
