@@ -5,7 +5,6 @@
 #include <filesystem>
 #include <optional>
 #include <set>
-#include <span>
 #include <string>
 #include <type_traits>
 #include <utility>
@@ -14,14 +13,6 @@
 #include "sdoslam/core/error.h"
 
 namespace sdoslam {
-
-// A deprecated config key: the dotted path it had and the one it has now. An entry whose new path
-// is a setting renames that one key; an entry whose new path is a section moves every key below
-// the old section (old.x.y -> new.x.y).
-struct ConfigAlias {
-  const char* old_path;
-  const char* new_path;
-};
 
 // A YAML mapping read key by key. Every key read is remembered; RejectUnknownKeys() then throws
 // for the first key nobody asked for, so that a misspelt setting is an error instead of a silent
@@ -58,14 +49,6 @@ class ConfigMap {
   std::optional<ConfigMap> Section(const std::string& key);
 
   void RejectUnknownKeys() const;
-
-  // Rewrites deprecated keys below this mapping to their new paths before anything is read:
-  // each old key found is moved to its new path with one warning naming the file, its line and
-  // both keys. `known_keys`: every setting's new dotted path (ListFields), so that a key below a
-  // moved section that names no setting is an unknown key under its old name. Throws Error when
-  // the old and the new key of one setting are both given, naming both lines.
-  void ApplyAliases(std::span<const ConfigAlias> aliases,
-                    const std::vector<std::string>& known_keys);
 
   const std::string& origin() const { return origin_; }
 

@@ -193,32 +193,8 @@ void FrontEndOptions::Check() const {
   if (flow == "onnx" && flow_model.empty()) throw Error("flow 'onnx' needs dynamic.flow.model");
 }
 
-namespace {
-
-// The keys that moved when the config's paths became the options' own (issue 16): the settings
-// of one segmenter backend, and HOG's, got sections of their own.
-constexpr ConfigAlias kFrontEndAliases[] = {
-    {"dynamic.segmenter.work_width", "dynamic.segmenter.rgbd.work_width"},
-    {"dynamic.segmenter.sigma", "dynamic.segmenter.rgbd.sigma"},
-    {"dynamic.segmenter.k", "dynamic.segmenter.rgbd.k"},
-    {"dynamic.segmenter.min_size", "dynamic.segmenter.rgbd.min_size"},
-    {"dynamic.segmenter.colour_weight", "dynamic.segmenter.rgbd.colour_weight"},
-    {"dynamic.segmenter.depth_weight", "dynamic.segmenter.rgbd.depth_weight"},
-    {"dynamic.segmenter.score_threshold", "dynamic.segmenter.yoloseg.score_threshold"},
-    {"dynamic.segmenter.nms_iou", "dynamic.segmenter.yoloseg.nms_iou"},
-    {"dynamic.segmenter.mask_threshold", "dynamic.segmenter.yoloseg.mask_threshold"},
-    {"dynamic.segmenter.max_instances", "dynamic.segmenter.yoloseg.max_instances"},
-    {"dynamic.detector.hog_work_width", "dynamic.detector.hog.work_width"},
-    {"dynamic.detector.hog_hit_threshold", "dynamic.detector.hog.hit_threshold"},
-};
-
-}  // namespace
-
-std::span<const ConfigAlias> FrontEndOptionAliases() { return kFrontEndAliases; }
-
 FrontEndOptions ReadFrontEndOptions(ConfigMap& root) {
   FrontEndOptions o;
-  root.ApplyAliases(FrontEndOptionAliases(), ListFields<FrontEndOptions>("dynamic."));
   std::optional<ConfigMap> section = root.Section("dynamic");
   if (!section) return o;
   ReadFields(*section, &o);

@@ -101,11 +101,8 @@ struct FrontEndOptions {
 Segmentation CarrySegmentsAlongFlow(const Segmentation& last, const cv::Mat& flow, int span,
                                     const cv::Mat& depth = cv::Mat());
 
-// Keys of earlier versions that still read, with a warning: old dotted path -> new one.
-std::span<const ConfigAlias> FrontEndOptionAliases();
-
-// Reads the optional `dynamic:` section; deprecated keys are read with a warning, unknown keys
-// and backend names are errors naming the file and line.
+// Reads the optional `dynamic:` section; unknown keys and backend names are errors naming the
+// file and line.
 FrontEndOptions ReadFrontEndOptions(ConfigMap& root);
 // Writes the `dynamic:` section (ReadFrontEndOptions reads it back to the same options).
 void WriteFrontEndOptions(const FrontEndOptions& options, YAML::Emitter* out);

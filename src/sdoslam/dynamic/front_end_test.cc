@@ -280,136 +280,12 @@ TEST(FrontEndOptionsTest, TheWrittenConfigReadsBackToTheSameOptions) {
   o.classifier.movable_classes = {"person", "cat"};
   const std::string text = WrittenFrontEndOptions(o);
   ConfigMap root = ConfigMap::LoadString(text, "written.yaml");
-  testing::CapturedLog log;
   EXPECT_EQ(testing::FieldValues(ReadFrontEndOptions(root)), testing::FieldValues(o));
   root.RejectUnknownKeys();
-  EXPECT_EQ(log.Count("deprecated"), 0) << log.text();
   EXPECT_EQ(text.find("hog_work_width"), std::string::npos) << text;
 }
 
-// Each old key reads into the setting of its new key, with one warning naming file, line and
-// both keys.
-TEST(FrontEndOptionsTest, EveryDeprecatedKeyReadsAsItsNewKeyWithOneWarning) {
-  const auto keys = ListFields<FrontEndOptions>();
-  std::vector<std::string> dynamic_keys;
-  for (const std::string& key : keys) dynamic_keys.push_back("dynamic." + key);
-  const auto aliases = testing::ExpandAliases(FrontEndOptionAliases(), dynamic_keys);
-  EXPECT_EQ(aliases.size(), 12u);
-  const auto defaults = testing::FieldValues(FrontEndOptions());
-  for (const auto& [old_path, new_path] : aliases) {
-    SCOPED_TRACE(old_path + " -> " + new_path);
-    const std::string field = new_path.substr(std::string("dynamic.").size());
-    std::string yaml, expected;
-    ASSERT_TRUE(testing::NearbyValue<FrontEndOptions>(field, &yaml, &expected));
-    ASSERT_NE(expected, defaults.at(field));
-    ConfigMap by_new = ConfigMap::LoadString(testing::NestedYaml(new_path, yaml), "new.yaml");
-    ConfigMap by_old = ConfigMap::LoadString(
-        "dynamic:\n  flow:\n    frame_gap: 4\n" +
-            testing::NestedYaml(old_path, yaml).substr(std::string("dynamic:\n").size()),
-        "old.yaml");
-    testing::CapturedLog log;
-    const auto read_new = testing::FieldValues(ReadFrontEndOptions(by_new));
-    EXPECT_EQ(log.Count("deprecated"), 0) << log.text();
-    auto read_old = testing::FieldValues(ReadFrontEndOptions(by_old));
-    by_old.RejectUnknownKeys();
-    EXPECT_EQ(read_old.at(field), expected);
-    EXPECT_EQ(read_old.at("flow.frame_gap"), "4");
-    read_old["flow.frame_gap"] = read_new.at("flow.frame_gap");
-    EXPECT_EQ(read_old, read_new);
-    EXPECT_EQ(log.Count("deprecated"), 1) << log.text();
-    // dynamic: and flow: take three lines; the old key is below dynamic: and its stage.
-    EXPECT_EQ(log.Count("old.yaml:5: config key '" + old_path + "' is deprecated, it is now '" +
-                        new_path + "'"),
-              1)
-        << log.text();
-  }
-}
-
-// Every key the previous version read (its hand-written list, copied here, not the alias
-// table) still reads into the setting it named: renamed ones with one warning, the rest without.
-TEST(FrontEndOptionsTest, EveryKeyOfThePreviousVersionReadsIntoItsSetting) {
-  std::vector<std::pair<std::string, std::string>> keys;
-  for (const char* key : {"segmenter.backend",
-                          "segmenter.model",
-                          "segmenter.folder",
-                          "detector.backend",
-                          "detector.model",
-                          "detector.file",
-                          "detector.every",
-                          "detector.score_threshold",
-                          "detector.nms_iou",
-                          "flow.backend",
-                          "flow.model",
-                          "flow.work_width",
-                          "flow.dis_preset",
-                          "flow.frame_gap",
-                          "flow.onnx_input_names",
-                          "boundaries.k_magnitude",
-                          "boundaries.k_orientation",
-                          "boundaries.strong",
-                          "boundaries.threshold",
-                          "boundaries.min_flow_for_angle",
-                          "classifier.movable_classes",
-                          "classifier.work_width",
-                          "classifier.min_box_iou",
-                          "classifier.min_inside_box",
-                          "classifier.same_depth_tolerance",
-                          "classifier.same_depth_min_m",
-                          "classifier.boundary_band_px",
-                          "classifier.min_outline_on_boundary",
-                          "classifier.min_in_front",
-                          "classifier.min_in_front_of_outline",
-                          "classifier.in_front_ratio",
-                          "classifier.max_segment_area",
-                          "classifier.persistence_frames",
-                          "classifier.persistence_overlap",
-                          "classifier.persistence_large_overlap",
-                          "classifier.persistence_min_in_front",
-                          "classifier.persistence_min_ordered",
-                          "classifier.margin_px"})
-    keys.emplace_back(key, key);
-  for (const char* key :
-       {"work_width", "depth_step", "depth_step_min_m", "concave_angle_deg", "normal_window",
-        "concave_span_px", "min_size", "grow_passes", "max_grow_depth_ratio"})
-    keys.emplace_back(std::string("segmenter.geometric.") + key,
-                      std::string("segmenter.geometric.") + key);
-  for (const char* key : {"work_width", "sigma", "k", "min_size", "colour_weight", "depth_weight"})
-    keys.emplace_back(std::string("segmenter.") + key, std::string("segmenter.rgbd.") + key);
-  for (const char* key : {"score_threshold", "nms_iou", "mask_threshold", "max_instances"})
-    keys.emplace_back(std::string("segmenter.") + key, std::string("segmenter.yoloseg.") + key);
-  keys.emplace_back("detector.hog_work_width", "detector.hog.work_width");
-  keys.emplace_back("detector.hog_hit_threshold", "detector.hog.hit_threshold");
-  ASSERT_EQ(keys.size(), 50u + 9u);
-  // Values NearbyValue would give that fail a check.
-  const std::map<std::string, std::string> valid = {{"segmenter.backend", "rgbd"},
-                                                    {"detector.backend", "none"},
-                                                    {"flow.backend", "farneback"},
-                                                    {"flow.dis_preset", "0"},
-                                                    {"classifier.in_front_ratio", "1.25"}};
-  const auto read = [](ConfigMap& root) { return ReadFrontEndOptions(root); };
-  const auto defaults = testing::FieldValues(FrontEndOptions());
-  for (const auto& [old_path, new_path] : keys) {
-    SCOPED_TRACE(old_path + " -> " + new_path);
-    std::string yaml, expected;
-    ASSERT_TRUE(testing::NearbyValue<FrontEndOptions>(new_path, &yaml, &expected));
-    if (valid.count(new_path)) yaml = expected = valid.at(new_path);
-    testing::CapturedLog log;
-    const auto by_new =
-        testing::ReadValues(testing::NestedYaml("dynamic." + new_path, yaml), "new.yaml", read);
-    EXPECT_EQ(by_new.at(new_path), expected);
-    EXPECT_NE(by_new.at(new_path), defaults.at(new_path));
-    EXPECT_EQ(
-        testing::ReadValues(testing::NestedYaml("dynamic." + old_path, yaml), "old.yaml", read),
-        by_new);
-    EXPECT_EQ(log.Count("deprecated"), old_path == new_path ? 0 : 1) << log.text();
-  }
-}
-
-TEST(FrontEndOptionsTest, OldAndNewKeysTogetherAndUnknownKeysAreErrors) {
-  EXPECT_EQ(FrontEndErrorOf("dynamic:\n  detector:\n    hog:\n      work_width: 200\n"
-                            "    hog_work_width: 100\n"),
-            "c.yaml: dynamic.detector.hog_work_width (line 5) is the deprecated name of "
-            "dynamic.detector.hog.work_width (line 4): give only dynamic.detector.hog.work_width");
+TEST(FrontEndOptionsTest, UnknownKeysAreErrorsNamingFileLineAndTheKnownKeys) {
   EXPECT_EQ(FrontEndErrorOf("dynamic:\n  segmenter:\n    rgbd:\n      work_widht: 200\n"),
             "c.yaml:4: unknown key 'dynamic.segmenter.rgbd.work_widht' (known here: colour_weight, "
             "depth_weight, k, min_size, sigma, work_width)");
@@ -420,8 +296,6 @@ TEST(FrontEndOptionsTest, OldAndNewKeysTogetherAndUnknownKeysAreErrors) {
 
 TEST(FrontEndOptionsTest, CheckMessagesNameTheConfigPath) {
   EXPECT_EQ(FrontEndErrorOf("dynamic:\n  segmenter:\n    rgbd:\n      work_width: 8\n"),
-            "c.yaml: dynamic.segmenter.rgbd.work_width must be at least 16");
-  EXPECT_EQ(FrontEndErrorOf("dynamic:\n  segmenter:\n    work_width: 8\n"),
             "c.yaml: dynamic.segmenter.rgbd.work_width must be at least 16");
   EXPECT_EQ(FrontEndErrorOf("dynamic:\n  detector:\n    hog:\n      scale: 1\n"),
             "c.yaml: dynamic.detector.hog.scale must exceed 1");

@@ -35,37 +35,8 @@ void SlamOptions::Check() const {
   loop_closing.Check("loop_closing.");
 }
 
-namespace {
-
-// The keys that moved when the config's paths became the options' own (issue 16). A section
-// entry moves every key below it; the more specific entry wins.
-constexpr ConfigAlias kSlamAliases[] = {
-    {"consistency", "tracking.consistency"},
-    {"consistency.static_motion", "tracking.consistency.static_motion.enabled"},
-    {"consistency.static_motion_grid_columns", "tracking.consistency.static_motion.grid_columns"},
-    {"consistency.static_motion_grid_rows", "tracking.consistency.static_motion.grid_rows"},
-    {"consistency.static_motion_min_corner_strength",
-     "tracking.consistency.static_motion.min_corner_strength"},
-    {"consistency.static_motion_hypotheses", "tracking.consistency.static_motion.hypotheses"},
-    {"consistency.static_motion_inlier_px", "tracking.consistency.static_motion.inlier_px"},
-    {"consistency.static_motion_min_gain", "tracking.consistency.static_motion.min_gain"},
-    {"consistency.static_motion_min_extra_samples",
-     "tracking.consistency.static_motion.min_extra_samples"},
-    {"consistency.static_motion_min_correspondences",
-     "tracking.consistency.static_motion.min_correspondences"},
-    {"consistency.static_motion_seed", "tracking.consistency.static_motion.seed"},
-    {"mapping.ba_iterations", "mapping.bundle_adjustment.iterations"},
-    {"mapping.ba_refine_iterations", "mapping.bundle_adjustment.refine_iterations"},
-    {"loop_closing.vocabulary", "vocabulary"},
-};
-
-}  // namespace
-
-std::span<const ConfigAlias> SlamOptionAliases() { return kSlamAliases; }
-
 SlamOptions ReadSlamOptions(ConfigMap& root) {
   SlamOptions o;
-  root.ApplyAliases(SlamOptionAliases(), ListFields<SlamOptions>());
   ReadFields(root, &o);
   try {
     o.Check();

@@ -65,13 +65,9 @@ struct SlamOptions {
   }
 };
 
-// Keys of earlier versions that still read, with a warning: old dotted path -> new one.
-std::span<const ConfigAlias> SlamOptionAliases();
-
 // Reads the SLAM's settings (orb:, rgbd:, tracking:, mapping:, loop_closing:, vocabulary) from
-// the top level of a run config (the camera: section is read by ReadCameraOptions); deprecated
-// keys are read with a warning, unknown keys below these sections are errors, and the options
-// are checked.
+// the top level of a run config (the camera: section is read by ReadCameraOptions); unknown
+// keys below these sections are errors, and the options are checked.
 SlamOptions ReadSlamOptions(ConfigMap& root);
 // Writes them, each setting at its key, into an open YAML mapping (ReadSlamOptions reads it
 // back to the same options).

@@ -176,28 +176,4 @@ class CapturedLog {
   std::shared_ptr<spdlog::logger> previous_;
 };
 
-// The alias table with section entries spelt out: every old key path and the new path it reads
-// as, given the options' keys (ListFields).
-inline std::vector<std::pair<std::string, std::string>> ExpandAliases(
-    std::span<const ConfigAlias> aliases, const std::vector<std::string>& keys) {
-  auto is_key = [&](const std::string& path) {
-    return std::find(keys.begin(), keys.end(), path) != keys.end();
-  };
-  std::vector<std::pair<std::string, std::string>> expanded;
-  for (const ConfigAlias& alias : aliases) {
-    const std::string old_path = alias.old_path, new_path = alias.new_path;
-    if (is_key(new_path)) {
-      expanded.emplace_back(old_path, new_path);
-      continue;
-    }
-    for (const std::string& key : keys) {
-      if (key.rfind(new_path + ".", 0) != 0) continue;
-      bool own_entry = false;  // a more specific entry renames it
-      for (const ConfigAlias& other : aliases) own_entry = own_entry || key == other.new_path;
-      if (!own_entry) expanded.emplace_back(old_path + key.substr(new_path.size()), key);
-    }
-  }
-  return expanded;
-}
-
 }  // namespace sdoslam::testing
