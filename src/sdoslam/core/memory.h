@@ -19,10 +19,10 @@ bool ResetPeakResidentBytes();
 
 // Lets the allocator keep freed image-sized blocks for reuse (glibc: mmap and trim thresholds of
 // 16 MiB, mallopt) instead of handing each back to the kernel. Every frame allocates and frees
-// images of 0.3–3.7 MB; given back, each is faulted in page by page again on its next use (50
-// frames of sdo: 57,000 page faults against 21,000, system time 0.5 against 0.25 s, the same
-// peak RSS). Process-wide: `sdoslam` calls it first thing; a program embedding the library may
-// call it at its start. Returns false where the allocator has no such settings.
+// images of 0.3–3.7 MB; given back, each is faulted in page by page again on its next use
+// (nearly three times the page faults and twice the system time in sdo, the same peak RSS).
+// Process-wide: `sdoslam` calls it first thing; a program embedding the library may call it at
+// its start. Returns false where the allocator has no such settings.
 bool KeepImageBuffersForReuse();
 
 }  // namespace sdoslam

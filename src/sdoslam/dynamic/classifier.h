@@ -42,7 +42,7 @@ struct SdoClassifierOptions {
   // whole background). The second share is lower than the first because a segmenter that cuts
   // along creases splits a body into parts, whose crease outlines occlude nothing; with the
   // geometric segmenter and one share of 0.5 for both, a walking person's parts were missed
-  // (synthetic walking_xyz, 500 frames: 26.9 mm against 7.2 with 0.35).
+  // (several times the ATE on synthetic walking_xyz).
   int boundary_band_px = 1;
   double min_outline_on_boundary = 0.3;
   double min_in_front = 0.5;
@@ -58,17 +58,15 @@ struct SdoClassifierOptions {
   // ... unless the segment lies behind its neighbours: nearer side along less than
   // persistence_min_in_front of at least persistence_min_ordered depth-ordered outline pairs.
   // The memory stays on the pixels a mover covered, and where a person who filled most of the
-  // view has walked on, the room that comes back there is behind what still borders it
-  // (synthetic loop, 900 frames: 40-47 % of the room in view labelled for frames after the
-  // person had gone, and tracking lost; with the rule no frame with 30 % of the room in view is
-  // lost, ATE 12.6 -> 8.2 mm, worst frame 215 -> 59 mm). A paused mover stays in front.
+  // view has walked on, the room that comes back there is behind what still borders it:
+  // without the rule it stayed labelled after the person had gone and tracking was lost (the
+  // synthetic loop; docs/results.md, Long runs). A paused mover stays in front.
   double persistence_min_in_front = 0.2;
   int persistence_min_ordered = 10;
   // A remembered segment larger than max_segment_area stays dynamic when the memory covers at
-  // least this much of it: a mover that comes up to the camera grows past max_segment_area
-  // (real desk, person_fills_view: a person walking up to the lens was dropped from the
-  // dynamic set at 60-80 % of the view, tracking followed it for 17 frames and drifted
-  // 0.4 m). A background segment is never that much covered by a mover a frame before.
+  // least this much of it: a mover that comes up to the camera grows past max_segment_area,
+  // and dropping it from the dynamic set let tracking follow it (person_fills_view). A
+  // background segment is never that much covered by a mover a frame before.
   double persistence_large_overlap = 0.8;
 
   int margin_px = 1;  // work pixels by which dynamic regions grow (features on silhouettes)

@@ -53,10 +53,10 @@ class NoDetector : public Detector {
 struct HogDetectorOptions {
   int work_width = 320;
   double hit_threshold = 0.0;
-  // Pyramid step. 1.2, not 1.1: 4 levels instead of 7 at 320 px, 8 ms a call instead of 14. A
-  // person may then be 10 % off the window's size instead of 5 %, a recall cost on real people
-  // that no sequence here can show (HOG boxes none of the rendered or composited people); the
-  // git history of README.md, "HOG's pyramid step", has the measurements.
+  // Pyramid step. 1.2, not 1.1: 4 levels instead of 7 at 320 px, a little over half the time a
+  // call. A person may then be 10 % off the window's size instead of 5 %, a recall cost on real
+  // people that no sequence here can show (HOG boxes none of the rendered or composited people;
+  // docs/performance.md, The front end).
   double scale = 1.2;
   void Check(
       const std::string& path = "dynamic.detector.hog.") const;  // Error names path + setting

@@ -31,12 +31,10 @@ class FlowEstimator {
 };
 
 struct FlowOptions {
-  // Flow runs at this width (aspect kept). 256 rather than 320, for accuracy: DIS's smoothing then
-  // spans more of the scene and the motion boundaries come out cleaner (README.md's git history,
-  // "the flow at 256 px": the 15 real-background plays 87.3 -> 81.6 mm, mean over five feature
-  // counts; synthetic scenarios unchanged, 36.7 mm summed). Not for speed: DIS is cheaper, but the
-  // 2.5x area resize and the check's extra tracks cost as much (callgrind 13.21 -> 13.22 G over 30
-  // frames). 192 was worse on the carried box.
+  // Flow runs at this width (aspect kept). 256 rather than 320, for accuracy, not speed (the
+  // cost is about the same): DIS's smoothing then spans more of the scene and the motion
+  // boundaries come out cleaner, better on the real-background plays and the same on synthetic
+  // scenarios; 192 was worse on the carried box (docs/performance.md, The front end).
   int work_width = 256;
   // DIS preset: 0 ultrafast, 1 fast, 2 medium (OpenCV's DISOpticalFlow presets).
   int dis_preset = 1;

@@ -32,10 +32,8 @@ struct FrontEndOptions {
   YoloSegOptions yoloseg;
   // Run the segmenter on every n-th frame; in between, the last segments are carried along the
   // flow (CarrySegmentsAlongFlow). Every frame by default: every 2nd saves about half of the
-  // segmenter's 5 ms a frame (sdo instructions -9 % on the mixed play, callgrind, 40 frames), but
-  // a person filling the view moves too far in a frame: person_fills_view 18.6 -> 21.3 mm (the
-  // 15 real-background plays 80.8 -> 84.1 mm) and its held-out seeds 4-6 5.3 -> 6.7 mm on
-  // average (README.md's git history, "the segmenter on every frame still").
+  // segmenter's cost, but a person filling the view moves too far in a frame and accuracy drops
+  // there (docs/performance.md, Trading accuracy for speed).
   int segment_every = 1;
 
   std::string detector = "hog";           // nanodet | fastestdet | yolov8 | hog | file | none
@@ -43,10 +41,9 @@ struct FrontEndOptions {
   std::filesystem::path detections_file;  // file: JSON (relative: to the dataset)
   // Run the detector on every n-th frame; in between, boxes follow the median flow of their
   // nearer pixels, one frame's worth of it (front_end.cc: ShiftByFlow).
-  // Every 2nd frame by default: half of HOG's 5-6 ms a frame (threaded sdo, CPU per frame
-  // about 7 ms less). A person who enters or crosses the view close is boxed a frame late:
-  // the synthetic loop's person mask IoU 0.855 -> 0.834 (sdo, 150 frames, file detector), the
-  // other people scenarios within 0.003, ATE unchanged. Every 3rd: loop 0.710.
+  // Every 2nd frame by default: half of HOG's cost, while a person who enters or crosses the
+  // view close is boxed only a frame late (mask IoU a little lower, ATE unchanged); every 3rd or
+  // 4th loses much more IoU (docs/performance.md, Trading accuracy for speed).
   int detect_every = 2;
   DetectorOptions detection;
   HogDetectorOptions hog;

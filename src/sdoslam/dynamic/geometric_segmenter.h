@@ -24,10 +24,9 @@ namespace sdoslam {
 // Normals come from OpenCV's rgbd module (RgbdNormals, FALS); the edge test and the region
 // growing are a few loops of our own, since no library here segments by concavity.
 struct GeometricSegmenterOptions {
-  // px; segmentation runs at this width (aspect kept). Not 240: that was better on the boxes of
-  // the real-background plays (ATE summed over 13 sequences 68.0 -> 63.6 mm, 3 ms cheaper), but
-  // merged a walking-up person's head and torso into one segment that the motion-boundary test
-  // no longer selected, and on person_fills_view sdo followed the person (59-74 mm against 6-7).
+  // px; segmentation runs at this width (aspect kept). Not 240: that was cheaper and better on
+  // the boxes of the real-background plays, but merged a walking-up person's head and torso into
+  // one segment that the motion-boundary test no longer selected, and sdo followed the person.
   int work_width = 320;
   double depth_step = 0.04;            // an edge where neighbours' depths differ by this fraction
   double depth_step_min_m = 0.01;      // ... and by at least this many metres (sensor noise)

@@ -10,9 +10,9 @@ namespace sdoslam {
 // up to 0.4 off them; a test checks both).
 //
 // Written here because OpenCV's first Lab conversion in a process builds its interpolation
-// tables in software floating point: 140-270 ms of one core (callgrind: 1.3 G instructions,
-// 107,000 calls of cv::pow), paid by the first frame of every run. This one needs a 256-entry
-// table for the sRGB curve and one of 4,097 for the cube root, made in microseconds.
+// tables in software floating point: 140-270 ms of one core (docs/performance.md), paid by the
+// first frame of every run. This one needs a 256-entry table for the sRGB curve and one of
+// 4,097 for the cube root, made in microseconds.
 void BgrToLab(const cv::Mat& bgr, cv::Mat* lab);
 
 // The same conversion of one pixel, for callers that need a few pixels' colours.

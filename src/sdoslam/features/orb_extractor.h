@@ -54,8 +54,7 @@ class OrbExtractor {
   // the level's own, which is what cv::ORB does with keypoints of octave L on the level image
   // (it samples its own L-th pyramid image of what it is handed): sdoslam was built and tuned
   // with these. Sampling the level image itself, as ORB-SLAM does, matched worse on the real
-  // clip (fr2_desk_50, ATE: conventional 3.3 -> 4.1 mm, sdo 3.1 -> 4.2; played forward and
-  // backward 3.8 -> 4.7 and 3.7 -> 5.0; fewer matches and inliers a frame).
+  // fr2_desk clip: fewer matches and inliers a frame, and about 1 mm more ATE in both modes.
   // The same bits, without building and smoothing the L images below the one sampled.
   cv::Mat DescribeLevel(const cv::Mat& level_image, int level,
                         std::vector<cv::KeyPoint> keypoints) const;

@@ -15,9 +15,9 @@ namespace sdoslam {
 // hands the bytes to OpenCV, which decides as before.
 //
 // Hand-written because of speed: libpng inflates with zlib, and that was a sixth of a threaded
-// sdo run's CPU (a TUM colour image 5.6 ms, a depth image 3.1 ms, a ground-truth mask 1.4-2.2
-// ms). libdeflate (a Debian package) inflates the same streams in 4.4, 1.6 and 0.1 ms, but it
-// only inflates; the PNG framing around it (chunks, CRCs, the five row filters) is this file.
+// sdo run's CPU. libdeflate (a Debian package) inflates the same streams faster (a depth image
+// in half the time; docs/performance.md, Decoding), but it only inflates; the PNG framing
+// around it (chunks, CRCs, the five row filters) is this file.
 std::optional<cv::Mat> DecodePng(std::span<const uint8_t> bytes);
 
 // cv::imread(path, flags) for IMREAD_UNCHANGED, IMREAD_COLOR and IMREAD_GRAYSCALE, decoding the

@@ -40,16 +40,15 @@ struct LoopClosingOptions {
   int essential_min_weight = 100;
   // ... the strongest this many per keyframe, to older keyframes; and of the links a loop
   // makes, the strongest this many per keyframe it moved. The pose graph's cost follows
-  // its edges: where conventional mode tracks people as static (3,000 frames of walking_xyz) a
-  // keyframe came every 1.5 frames, each had 70 such links, and the last closures' graphs of
-  // 42,000-55,000 edges took 27-131 s against 2 s for 14,000.
+  // its edges: where conventional mode tracks people as static, nearly every frame becomes a
+  // keyframe, and without the cap a closure's graph took minutes to solve.
   int essential_max_covisible = 10;
   // A closed loop fuses the loop side's points (the loop keyframe's and those of its strongest
   // this many covisible keyframes) into the closing keyframe and its strongest this many
   // (ORB-SLAM2: every covisible keyframe on both sides), and reconnects only those. Where
   // conventional mode keeps nearly every keyframe, a keyframe had hundreds of covisible ones
-  // and a closure spent 11.7 s fusing, then 51 s reconnecting; sdo's and static scenes' maps
-  // keep fewer keyframes alive (13-35) than the cap.
+  // and a closure took a minute; sdo's and static scenes' maps keep fewer keyframes alive
+  // (13-35) than the cap.
   int fuse_keyframes = 50;
   RigidRansacOptions ransac;
   PoseGraphOptions pose_graph;
@@ -59,11 +58,10 @@ struct LoopClosingOptions {
   bool global_bundle_adjustment = true;
   BundleAdjustmentOptions global_ba{10, 10};
   // A global BA over more observations than this is not run; the pose graph's correction
-  // stands (loops.csv says so). Its cost grows faster than the map: the long loop's 19
-  // keyframes (5,100 observations) take 0.2 s, but where conventional mode tracks people as
-  // static (3,000 frames of walking_xyz) the map kept growing, 153 keyframes (56,000
-  // observations) took 6-10 s, 245 (86,000) 12-23 s, and a later closure 215 s, with tracking
-  // stopped meanwhile in a sequential run. sdo's 3,000-frame runs keep 13-35 keyframes alive.
+  // stands (loops.csv says so). Its cost grows faster than the map: a fraction of a second for
+  // the long loop's 5,100 observations (docs/results.md, Loop closing), but minutes, with a
+  // sequential run's tracking stopped meanwhile, where conventional mode lets the map grow with
+  // people tracked as static. sdo's 3,000-frame runs keep 13-35 keyframes alive.
   int max_global_ba_observations = 100000;
   void Check(const std::string& path = "loop_closing.") const;  // Error names path + setting
   // Every setting, as its config key (core/config.h: ReadFields, WriteFields).

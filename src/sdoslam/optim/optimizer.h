@@ -54,10 +54,8 @@ struct BundleAdjustmentStats {
 struct BundleAdjustmentOptions {
   // First pass, all observations with Huber loss. 3, not ORB-SLAM2's 5: the second pass
   // starts where the first stopped and converges within a few iterations either way, so the
-  // two extra first-pass iterations bought nothing measurable (scripts/plays.sh 79.8 -> 79.7 mm;
-  // held-out seeds 4-6 50.4 -> 49.8; fr2_desk_50 3.3 / 3.1 mm unchanged; 3,000 frames of
-  // walking_xyz 4.5 -> 4.4 mm) and cost 12 % of local BA's instructions on the mixed play (its
-  // sdo run -2.1 %, callgrind, 40 frames). README.md's git history, "Local BA's first pass".
+  // two extra first-pass iterations bought no accuracy for about 12 % more local-BA work
+  // (docs/performance.md, Local mapping).
   int iterations = 3;
   int refine_iterations = 10;  // second pass without the outliers of the first
   void Check(const std::string& path = "mapping.bundle_adjustment.") const;  // both >= 0

@@ -79,9 +79,8 @@ class StereoReprojectionError : public ceres::SizedCostFunction<3, 7, 3> {
 // T(δ) = [Exp(δω) | δt]·T₀, the chart of PoseManifold::Plus. TinySolver, Ceres' solver for small
 // dense problems, runs the same Levenberg–Marquardt as Ceres' trust-region minimiser without its
 // per-solve bookkeeping (a program, an evaluator, validity checks of every residual and Jacobian
-// entry, the product with the manifold's Jacobian), which was 90 % of OptimizePose: callgrind,
-// fr2_desk_50 sdo, 30 frames, OptimizePose 0.84 G instructions of which the residuals' own
-// arithmetic was under 0.1 G.
+// entry, the product with the manifold's Jacobian), which was about 90 % of OptimizePose's
+// cost, far more than the residuals' own arithmetic (docs/performance.md, Tracking).
 //
 // The loss is applied as Ceres applies Huber's (its Corrector; ρ'' ≤ 0, so no Triggs term), with
 // one row more per observation so that the cost stays exact: the rows are √ρ'·r with Jacobian

@@ -24,8 +24,8 @@ RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_wor
 // evenly over its area (a box filter, as a photosite integrates the light that falls on it).
 // With one ray per pixel (samples_per_side = 1: Render's colour) the sharp edges of the
 // procedural texture alias: a corner on them moves by whole pixels from frame to frame, and
-// every frame's pose jitters with it (static_room, 300 frames, perfect sensor: 3.1 mm of
-// frame-to-frame jitter with one ray, 2.5 mm with 2 × 2). Costs samples_per_side² renderings.
+// every frame's pose jitters with it; 2 × 2 rays take part of that away (docs/results.md, Long
+// runs). Costs samples_per_side² renderings.
 cv::Mat RenderColour(const Scene& scene, double t, const Eigen::Isometry3d& T_world_camera,
                      const Camera& camera, int samples_per_side);
 

@@ -38,8 +38,7 @@ struct SceneFlowOptions {
   int min_segment_features = 3;  // measured features (and voting samples) a segment needs
   // The static-motion grid's samples (one corner per textured cell) vote in the segment rule
   // beside the features, judged by the same thresholds: a plain object with few ORB features
-  // is judged by its area too (real-background carried box and mixed, median of three seeds:
-  // 6.8 -> 6.0 and 13.8 -> 12.0 mm; swinging boxes 5.1 -> 5.3).
+  // is judged by its area too (helps the carried box and mixed plays; docs/results.md).
   bool sample_votes = true;
   int max_iterations = 5;  // pose re-estimations per frame
   // The check's static set is kept when at least this many inliers remain; below it the frame
@@ -54,27 +53,16 @@ struct SceneFlowOptions {
   double min_established_kept = 0.5;
   int established_observations = 3;
   // Lucas–Kanade: window (px) and pyramid levels; a correspondence whose error per pixel
-  // exceeds max_track_error (8-bit intensity units) is left unmeasured. Two levels above the
-  // image (not three): the search starts where a static point would be, so the coarsest level
-  // is rarely needed; over the 12 hard real-background plays and the static ones accuracy was
-  // the same or better (mixed seeds 1-3 6.8 -> 6.4 mm), and tracking 3 ms a frame cheaper.
-  // A 15 px window, not 21: the search starts at the static prediction, so a small window
-  // suffices; features + tracking are 0.5-2.6 ms a frame cheaper (bench --runs 5: fr2_desk_50
-  // 34.4 -> 33.9 ms, mixed play seed 1 30.1 -> 27.5), and every seed of the four hard
-  // real-background plays stayed within its bar (medians: carried box 5.8 -> 5.6 mm, swinging
-  // boxes 5.6 -> 5.0, people 4.5 -> 4.8, mixed 6.5 -> 6.6).
-  // 16 px, not 15: OpenCV's Lucas-Kanade goes through each window row 8 pixels a step while it
-  // iterates (4 while it samples the first image) and does what is left of the row pixel by
-  // pixel, so 15 px rows spent half their instructions on 7-pixel tails. 16 px rows have none:
-  // its Lucas-Kanade 4.22 -> 2.04 G instructions, the sdo run 19.05 -> 16.90 G (callgrind, 40
-  // frames of the mixed play), with accuracy the same or better (scripts/plays.sh 81.3 -> 80.8
-  // mm; docs/performance.md; the measurements: README.md's git history, "A 16-pixel window").
+  // exceeds max_track_error (8-bit intensity units) is left unmeasured. The search starts where
+  // a static point would be, so a small window and two levels above the image suffice (a third
+  // is rarely needed, and costs time without accuracy). 16 px, not 15: OpenCV walks each window
+  // row 8 pixels a step and the rest pixel by pixel, so 16 px rows have no slow 7-pixel tail
+  // and cost about half the instructions (measurements: docs/performance.md).
   int track_window = 16;
   int track_levels = 2;
   // Lucas–Kanade's iterations per pyramid level (it also stops at 0.03 px). 10, not OpenCV's
   // customary 20: a static point starts at its prediction and settles in a few; the points
-  // that use them all are on movers, slipping anyway. 1.5 ms less CPU a frame, sdo ATE over
-  // 13 real-frame sequences 70.6 -> 70.5 mm summed.
+  // that use them all are on movers, slipping anyway (saves time, same accuracy).
   int track_iterations = 10;
   double max_track_error = 20.0;
   // ... and one that, tracked forward again, misses its start by more than this (px): dark or
@@ -96,12 +84,10 @@ struct SceneFlowOptions {
   int depth_window_radius = 2;
   // A segment larger than this share of the image is never turned dynamic as a whole: one
   // frame's check, started from a rough pose that a large mover dragged along, would otherwise
-  // take most of the static scene out at once. Its features are still judged one by one. The
-  // cap lets a close object through: at 0.2 a box carried 0.6 m ahead (26 % of the image) was
-  // judged feature by feature in the frames the front end missed it, and the features left
-  // unmeasured on it stayed static (real-background carried_box, seeds 1-6: 5.7-7.1 mm ->
-  // 4.7-6.0; mixed 6.5-7.6 -> 6.3-7.3; unknown-object IoU 0.71 -> 0.83). The classifier's
-  // own cap (classifier.max_segment_area) is 0.5.
+  // take most of the static scene out at once. Its features are still judged one by one. 0.4,
+  // not lower, so that a close object (a box carried 0.6 m ahead covers 26 % of the image) can
+  // still turn dynamic as a whole when the front end misses it (docs/results.md, carried_box).
+  // The classifier's own cap (classifier.max_segment_area) is 0.5.
   double max_segment_area = 0.4;
   // Before classifying, the rough pose is replaced by the motion that explains the largest
   // share of the image (static_motion.h), when that explains clearly more.

@@ -30,8 +30,8 @@ struct StaticMotionOptions {
   // this: on the TUM desk, the 90th percentile of all pixels is 0.0007, the 99th 0.013.
   double min_corner_strength = 0.002;
   // Corners are looked for on the image at half resolution (3 x 3 block, about 6 x 6 at full
-  // resolution) and each sample sits at its corner's full-resolution pixel: 0.5 ms a frame
-  // against 2.5 at full resolution with the 5 x 5 block.
+  // resolution) and each sample sits at its corner's full-resolution pixel: about a fifth of the
+  // time of full resolution with the 5 x 5 block (docs/performance.md).
   bool half_resolution_corners = true;
   int hypotheses = 200;    // RANSAC draws of three 3-D–3-D correspondences
   double inlier_px = 2.0;  // reprojection error of an inlier, px
@@ -41,7 +41,7 @@ struct StaticMotionOptions {
   double min_gain = 0.15;
   // ... and by at least this many samples: where few textured cells show the room (movers fill
   // the view), a handful of samples is noise, and replacing on it took most of the room out
-  // (real-background mixed: 36 samples against 31).
+  // (the real-background mixed play).
   int min_extra_samples = 10;
   int min_correspondences = 30;
   uint32_t seed = 7;  // RANSAC draws; runs stay repeatable

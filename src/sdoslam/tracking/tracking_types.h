@@ -27,11 +27,9 @@ struct TrackerOptions {
   // No keyframe within this many frames of the last one unless tracking is weak (inliers below
   // a quarter of the reference's matches) or the map has a single keyframe. ORB-SLAM2's RGB-D
   // tracking has no such spacing (0), and where movers hide much of the room its close-point
-  // rule fires on every second frame: sdo made 27 keyframes in the mixed play's 50 frames (the
-  // oracle 14), each local BA 20-50 ms. With 2: 20 keyframes there, local mapping's instructions
-  // -19 % (callgrind, 40 frames), the 15 real-background plays 80.8 -> 79.8 mm, the held-out
-  // seeds 4-6 50.4 mm summed either way, the real clip unchanged (README.md's git history,
-  // "Keyframes two frames apart"). 3: the plays 82.4 mm.
+  // rule fires on every second frame, each keyframe costing a local BA. 2 makes fewer keyframes
+  // and less mapping work at the same or better accuracy; 3 costs accuracy (scripts/plays.sh,
+  // docs/results.md: Robustness to small perturbations).
   int min_frames_between_keyframes = 2;
   double reference_ratio = 0.75;    // keyframe when tracking less than this of the reference
   int min_close_points = 100;       // keyframe when fewer close points are tracked...
@@ -40,9 +38,8 @@ struct TrackerOptions {
   // The local-map search's window, times the view-angle and pyramid-level window (2.5 or 4 px
   // times the level's scale). ORB-SLAM2 uses 3 for RGB-D. Under fast hand-held rotation with
   // blur (TUM freiburg1 rpy) the map points land farther from where the pose predicts them than
-  // 1x finds: on its first 300 frames 1 finds 100-150 of the local map's points a frame and
-  // conventional tracking drifts to 62 mm ATE (threaded 55-79), 3 gives 35 mm (29-41). 1 stays the
-  // default because fr2_desk_50 (slow) goes 3.3 -> 3.7 mm with 3; configs/tum_fr1.yaml sets 3.
+  // 1x finds, and tracking drifts; 3 fixes that but costs accuracy on slow footage (fr2_desk), so
+  // 1 stays the default and configs/tum_fr1.yaml sets 3 (docs/results.md, TUM fr1_rpy).
   double local_map_radius = 1.0;
   // Lost: the reference keyframe, this many of its best neighbours and this many of the last
   // keyframes are tried, each by descriptor matching and PnP in RANSAC.
@@ -56,9 +53,8 @@ struct TrackerOptions {
   // local-map search's, and the pose is kept when min_inliers remain after optimisation. A
   // person walking past close fills the view for a few frames while the camera hardly moves;
   // when the room comes back, the part in view is often one that only keyframes outside the
-  // reference's neighbourhood saw, and descriptor matching against those candidates found 0-2
-  // matches (synthetic loop: frames with 40-48 % of the room in view were lost in every mode).
-  // 0: off.
+  // reference's neighbourhood saw, and descriptor matching against those candidates finds
+  // almost nothing (the synthetic loop). 0: off.
   int relocalization_prior_frames = 30;
   double relocalization_radius_factor = 4.0;
   // With the consistency check on, a frame it cannot judge (relocalized after a loss of
@@ -74,11 +70,10 @@ struct TrackerOptions {
   // lens). A narrow frame after a narrow tracked frame is never made a keyframe, which would
   // write its error into the map that the frames after it, and the relocalization after the
   // loss, stand on. Both measures, because each alone is fooled: the samples are few wherever the
-  // check cannot track or explain them (70 frames of the long loop with people, a view full of
-  // the static room, 626 static features with depth or more), and features labelled static may
-  // lie on the person. Two frames, because one is no evidence: the synthetic loop's frame two
-  // after its relocalization has 3 samples, its past frame having been covered. Either 0 turns
-  // the rule off (docs/results.md: Robustness to small perturbations).
+  // check cannot track or explain them, even with the static room in full view, and features
+  // labelled static may lie on the person. Two frames, because one is no evidence: a frame whose
+  // past frame was covered has few samples. Either 0 turns the rule off (docs/results.md:
+  // Robustness to small perturbations).
   int keyframes_min_static_samples = 15;
   int keyframes_min_static_features = 300;
   SceneFlowOptions consistency;  // the scene-flow consistency check and map hygiene
