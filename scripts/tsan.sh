@@ -15,12 +15,13 @@ if [ -f build/src/sdoslam/place/default_vocabulary.sdv ]; then
 fi
 cmake -S . -B build-tsan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSDOSLAM_SANITIZE=thread \
   "${vocabulary[@]}" >/dev/null
-cmake --build build-tsan -j "$jobs" --target slam_test pipeline_test
+cmake --build build-tsan -j "$jobs" --target slam_test runner_test core_test
 log=$(mktemp)
 export TSAN_OPTIONS="suppressions=$PWD/scripts/tsan.supp halt_on_error=0 report_signal_unsafe=0"
 status=0
-build-tsan/src/sdoslam/pipeline/pipeline_test \
-  --gtest_filter='BoundedQueue.*:PipelineStages.AnUnreadable*:PipelineStages.AnInterrupted*:PipelineStages.FramesReadAtTheCameraRate*' >"$log" 2>&1 || status=$?
+build-tsan/src/sdoslam/core/core_test --gtest_filter='BoundedQueue.*' >"$log" 2>&1 || status=$?
+build-tsan/src/sdoslam/runner/runner_test \
+  --gtest_filter='PipelineStages.AnUnreadable*:PipelineStages.AnInterrupted*:PipelineStages.FramesReadAtTheCameraRate*' >>"$log" 2>&1 || status=$?
 build-tsan/src/sdoslam/slam/slam_test --gtest_filter='SlamThreaded.*' >>"$log" 2>&1 || status=$?
 reports=$(grep -c "WARNING: ThreadSanitizer" "$log" || true)
 grep -E "^\[  (PASSED|FAILED)" "$log" || true

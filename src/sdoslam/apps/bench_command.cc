@@ -10,7 +10,7 @@
 #include "sdoslam/apps/run_command.h"
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/memory.h"
-#include "sdoslam/pipeline/pipeline.h"
+#include "sdoslam/runner/run_on_dataset.h"
 #include "sdoslam/synth/scenarios.h"
 #include "sdoslam/synth/sequence.h"
 

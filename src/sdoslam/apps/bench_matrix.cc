@@ -17,7 +17,7 @@
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/memory.h"
 #include "sdoslam/core/text_file.h"
-#include "sdoslam/pipeline/pipeline.h"
+#include "sdoslam/runner/run_on_dataset.h"
 #include "sdoslam/synth/scenarios.h"
 #include "sdoslam/synth/sequence.h"
 

@@ -12,7 +12,7 @@
 #include "sdoslam/eval/report.h"
 #include "sdoslam/io/dataset.h"
 #include "sdoslam/io/trajectory.h"
-#include "sdoslam/pipeline/pipeline.h"
+#include "sdoslam/runner/run_on_dataset.h"
 #include "sdoslam/synth/scenarios.h"
 #include "sdoslam/synth/sequence.h"
 

@@ -16,7 +16,7 @@
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/interrupt.h"
-#include "sdoslam/pipeline/pipeline.h"
+#include "sdoslam/runner/run_on_dataset.h"
 
 namespace sdoslam {
 namespace {

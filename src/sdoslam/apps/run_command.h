@@ -3,7 +3,7 @@
 #include <CLI/CLI.hpp>
 #include <string>
 
-#include "sdoslam/pipeline/pipeline.h"
+#include "sdoslam/runner/run_on_dataset.h"
 
 namespace sdoslam {
 

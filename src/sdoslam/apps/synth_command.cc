@@ -206,7 +206,7 @@ void AddSynthCommand(CLI::App& app) {
         "it was (interrupt again to stop at once)\n");
     const auto exit_code = [] {
       return ExitRequest{InterruptHandler::ReceivedSignal() == SIGTERM ? kExitTerminated
-                                                                        : kExitInterrupted};
+                                                                       : kExitInterrupted};
     };
     try {
       RunSynth(*args);

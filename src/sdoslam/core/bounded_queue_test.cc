@@ -1,4 +1,4 @@
-#include "sdoslam/pipeline/bounded_queue.h"
+#include "sdoslam/core/bounded_queue.h"
 
 #include <gtest/gtest.h>
 
