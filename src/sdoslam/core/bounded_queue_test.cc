@@ -84,5 +84,53 @@ TEST(BoundedQueue, CloseWakesAConsumerWaitingOnAnEmptyQueue) {
   EXPECT_TRUE(ended.load());
 }
 
+// What SLAM's threads read off the queue: an item waits, is under way, is done.
+TEST(BoundedQueue, TellsWhatWaitsWhatIsUnderWayAndWhenItIsDone) {
+  BoundedQueue<int> queue;  // no bound
+  const auto under_way = [](const auto& view) { return view.under_way.value_or(-1); };
+  const auto waiting = [](const auto& view) { return view.waiting.size(); };
+  EXPECT_FALSE(queue.waiting());
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(queue.Push(i));
+  EXPECT_TRUE(queue.waiting());
+  EXPECT_EQ(queue.Inspect(waiting), 3u);
+  EXPECT_FALSE(queue.Inspect([](const auto& view) { return view.busy; }));
+  EXPECT_EQ(*queue.Pop(), 0);
+  EXPECT_EQ(queue.Inspect(under_way), 0);
+  EXPECT_TRUE(queue.Inspect([](const auto& view) { return view.busy; }));
+  EXPECT_TRUE(queue.waiting());  // 1 and 2 still wait
+  queue.Done();
+  EXPECT_EQ(queue.Inspect(under_way), -1);
+  EXPECT_EQ(*queue.Pop(), 1);
+  EXPECT_EQ(*queue.Pop(), 2);
+  EXPECT_FALSE(queue.waiting());  // the last one is under way, none waits
+  EXPECT_EQ(queue.Inspect(under_way), 2);
+}
+
+TEST(BoundedQueue, WaitUntilReturnsWhenTheWorkIsDoneOrTheQueueCloses) {
+  BoundedQueue<int> queue;
+  ASSERT_TRUE(queue.Push(5));
+  std::atomic<int> finished{0};
+  std::thread consumer([&] {
+    const std::optional<int> item = queue.Pop();
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    finished = *item;
+    queue.Done();
+  });
+  // Waits while 5 waits or is under way: a waiter that only watched the hand-off would return
+  // as soon as the consumer took it.
+  queue.WaitUntil([](const auto& view) { return view.waiting.empty() && !view.busy; });
+  EXPECT_EQ(finished.load(), 5);
+  consumer.join();
+
+  ASSERT_TRUE(queue.Push(6));  // never taken: only closing ends the wait
+  std::thread closer([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    queue.Close();
+  });
+  queue.WaitUntil([](const auto& view) { return view.waiting.empty(); });
+  closer.join();
+  EXPECT_EQ(queue.Inspect([](const auto& view) { return view.waiting.size(); }), 1u);
+}
+
 }  // namespace
 }  // namespace sdoslam

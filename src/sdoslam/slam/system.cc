@@ -73,37 +73,19 @@ System::System(const CameraOptions& camera, const SlamOptions& options)
 System::~System() { Shutdown(); }
 
 void System::Shutdown() {
-  {
-    std::lock_guard<std::mutex> lock(queue_mutex_);
-    stop_ = true;
-  }
-  queue_changed_.notify_all();
-  mapping_done_.notify_all();
+  // Local mapping finishes what is queued, then loop closing: the keyframes mapping finished
+  // last still get their look.
+  mapping_queue_.Close();
   if (mapping_thread_.joinable()) mapping_thread_.join();
-  // Loop closing after mapping: the keyframes mapping finished last still get their look.
-  {
-    std::lock_guard<std::mutex> lock(queue_mutex_);
-    loop_stop_ = true;
-  }
-  loop_queue_changed_.notify_all();
+  loop_queue_.Close();
   frame_done_.notify_all();  // a frame that ended in an exception notified nobody
   if (loop_thread_.joinable()) loop_thread_.join();
 }
 
 void System::LoopLoop() {
-  for (;;) {
-    KeyFrame* keyframe = nullptr;
-    {
-      std::unique_lock<std::mutex> lock(queue_mutex_);
-      loop_queue_changed_.wait(lock, [this] { return loop_stop_ || !loop_queue_.empty(); });
-      if (loop_queue_.empty()) return;
-      keyframe = loop_queue_.front();
-      loop_queue_.pop_front();
-      loop_busy_ = true;
-    }
-    CloseLoops(keyframe);
-    std::lock_guard<std::mutex> lock(queue_mutex_);
-    loop_busy_ = false;
+  while (const std::optional<KeyFrame*> keyframe = loop_queue_.Pop()) {
+    CloseLoops(*keyframe);
+    loop_queue_.Done();
   }
 }
 
@@ -119,45 +101,34 @@ void System::CloseLoops(KeyFrame* keyframe) {
   spdlog::info("loop closed: frame {} with frame {} ({} inliers, moved {:.3f} m, {:.0f} ms)",
                result.record.frame_index, result.record.loop_frame_index,
                result.record.projected_inliers, result.record.correction_m, result.record.ms);
-  std::lock_guard<std::mutex> lock(queue_mutex_);
+  std::lock_guard<std::mutex> lock(records_mutex_);
   loop_records_.push_back(result.record);
 }
 
 std::vector<LoopRecord> System::LoopRecords() const {
-  std::lock_guard<std::mutex> lock(queue_mutex_);
+  std::lock_guard<std::mutex> lock(records_mutex_);
   return loop_records_;
 }
 
 void System::MappingLoop() {
-  for (;;) {
-    KeyFrame* keyframe = nullptr;
-    {
-      std::unique_lock<std::mutex> lock(queue_mutex_);
-      queue_changed_.wait(lock, [this] { return stop_ || !queue_.empty(); });
-      if (queue_.empty()) return;  // stopping, and everything queued is mapped
-      keyframe = queue_.front();
-      queue_.pop_front();
-      keyframe_waiting_ = !queue_.empty();
-      mapping_busy_ = true;
-      mapping_frame_ = keyframe->frame.index;
-    }
+  // Ends once the queue is closed and everything queued is mapped.
+  while (const std::optional<KeyFrame*> keyframe = mapping_queue_.Pop()) {
     const StageClock clock;
-    const MappingResult result = mapper_->Process(keyframe, &map_mutex_, &keyframe_waiting_);
+    const MappingResult result =
+        mapper_->Process(*keyframe, &map_mutex_, &mapping_queue_.waiting());
     const double ms = clock.WallMs(), cpu_ms = clock.CpuMs();
     {
-      std::lock_guard<std::mutex> lock(queue_mutex_);
-      mapping_busy_ = false;
+      std::lock_guard<std::mutex> lock(records_mutex_);
       mapping_records_.push_back(
-          {.frame_index = keyframe->frame.index, .ms = ms, .cpu_ms = cpu_ms, .result = result});
-      loop_queue_.push_back(keyframe);
+          {.frame_index = (*keyframe)->frame.index, .ms = ms, .cpu_ms = cpu_ms, .result = result});
     }
-    mapping_done_.notify_all();
-    loop_queue_changed_.notify_one();
+    loop_queue_.Push(*keyframe);
+    mapping_queue_.Done();
   }
 }
 
 std::vector<MappingRecord> System::MappingRecords() const {
-  std::lock_guard<std::mutex> lock(queue_mutex_);
+  std::lock_guard<std::mutex> lock(records_mutex_);
   return mapping_records_;
 }
 
@@ -234,17 +205,17 @@ void System::WaitForMapping(size_t index, FrameTiming* timing) {
   if (options_.sequential) return;
   const size_t lead = static_cast<size_t>(options_.mapping.max_tracking_lead);
   const auto start = std::chrono::steady_clock::now();
-  std::unique_lock<std::mutex> lock(queue_mutex_);
   // Keyframes are mapped in the order they were made: the oldest unfinished one is the one under
   // way, else the queue's first.
-  const auto oldest_unmapped = [&] {
-    if (mapping_busy_) return mapping_frame_;
-    return queue_.empty() ? index : queue_.front()->frame.index;
+  const auto oldest_unmapped = [&](const auto& queue) -> size_t {
+    if (queue.under_way) return (*queue.under_way)->frame.index;
+    return queue.waiting.empty() ? index : queue.waiting.front()->frame.index;
   };
   if (lead > 0) {
-    mapping_done_.wait(lock, [&] { return stop_ || oldest_unmapped() + lead >= index; });
+    mapping_queue_.WaitUntil(
+        [&](const auto& queue) { return oldest_unmapped(queue) + lead >= index; });
   }
-  timing->mapping_lag_frames = index - std::min(index, oldest_unmapped());
+  timing->mapping_lag_frames = index - std::min(index, mapping_queue_.Inspect(oldest_unmapped));
   timing->lock_wait_ms += MsSince(start);
 }
 
@@ -257,9 +228,10 @@ TrackingResult System::Track(PreparedFrame&& prepared, FrameTiming* timing) {
   KeyFrame* keyframe = nullptr;
   bool idle = true, accepts = true;
   if (!options_.sequential) {
-    std::lock_guard<std::mutex> lock(queue_mutex_);
-    idle = queue_.empty() && !mapping_busy_;
-    accepts = static_cast<int>(queue_.size()) < options_.mapping.max_queued_keyframes;
+    mapping_queue_.Inspect([&](const auto& queue) {
+      idle = queue.waiting.empty() && !queue.busy;
+      accepts = static_cast<int>(queue.waiting.size()) < options_.mapping.max_queued_keyframes;
+    });
   }
   TrackingResult result;
   {
@@ -293,12 +265,7 @@ TrackingResult System::Track(PreparedFrame&& prepared, FrameTiming* timing) {
                                   .cpu_ms = clock.CpuMs(),
                                   .result = mapped});
     } else {
-      {
-        std::lock_guard<std::mutex> lock(queue_mutex_);
-        queue_.push_back(keyframe);
-        keyframe_waiting_ = true;
-      }
-      queue_changed_.notify_one();
+      mapping_queue_.Push(keyframe);
     }
   }
   if (timing != nullptr) *timing = t;

@@ -2,7 +2,6 @@
 
 #include <atomic>
 #include <condition_variable>
-#include <deque>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -10,6 +9,7 @@
 #include <string>
 #include <thread>
 
+#include "sdoslam/core/bounded_queue.h"
 #include "sdoslam/core/camera.h"
 #include "sdoslam/core/config.h"
 #include "sdoslam/io/point_cloud.h"
@@ -192,24 +192,14 @@ class System {
   // loop correction waits for frame_done_ until it is not.
   bool in_frame_ = false;
   std::condition_variable frame_done_;
-  mutable std::mutex queue_mutex_;
-  std::condition_variable queue_changed_;
-  std::deque<KeyFrame*> queue_;
-  bool mapping_busy_ = false;
-  size_t mapping_frame_ = 0;  // the frame of the keyframe local mapping works on, while busy
-  // Local mapping finished a keyframe: tracking may wait for it (mapping.max_tracking_lead).
-  std::condition_variable mapping_done_;
-  // Whether a keyframe waits in queue_ (kept with it under queue_mutex_): stops local BA.
-  std::atomic<bool> keyframe_waiting_{false};
-  bool stop_ = false;
+  // Threaded: keyframes for local mapping (its waiting() flag stops local BA), and the
+  // keyframes local mapping has finished, for loop closing.
+  BoundedQueue<KeyFrame*> mapping_queue_;
+  BoundedQueue<KeyFrame*> loop_queue_;
+  mutable std::mutex records_mutex_;  // guards the two logs below
   std::vector<MappingRecord> mapping_records_;
-  std::thread mapping_thread_;
-  // Threaded: keyframes local mapping has finished, for the loop-closing thread.
-  std::deque<KeyFrame*> loop_queue_;
-  bool loop_busy_ = false;
-  bool loop_stop_ = false;
-  std::condition_variable loop_queue_changed_;
   std::vector<LoopRecord> loop_records_;
+  std::thread mapping_thread_;
   std::thread loop_thread_;
 };
 
