@@ -5,9 +5,11 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <random>
 
 #include "sdoslam/core/error.h"
+#include "sdoslam/optim/ransac.h"
 
 namespace sdoslam {
 namespace {
@@ -106,6 +108,65 @@ std::vector<int> Indices(const std::vector<bool>& inlier) {
   return indices;
 }
 
+// The RANSAC problem (ransac.h): minimal sets of 3 matches, fitted by Umeyama's method, scored by
+// inlier count with the MSAC cost as tie-break, the number of samples adapted to the best
+// inlier ratio.
+class RigidProblem {
+ public:
+  using Model = Eigen::Isometry3d;
+  using Score = Consensus;
+
+  RigidProblem(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b,
+               const std::vector<double>& threshold, const RigidRansacOptions& options)
+      : a_(a), b_(b), threshold_(threshold), options_(options), rng_(options.seed) {}
+
+  std::optional<Model> Hypothesis() {
+    std::vector<int> sample(3);
+    sample[0] = Draw();
+    do sample[1] = Draw();
+    while (sample[1] == sample[0]);
+    do sample[2] = Draw();
+    while (sample[2] == sample[0] || sample[2] == sample[1]);
+    const auto& a0 = a_[static_cast<size_t>(sample[0])];
+    const auto& a1 = a_[static_cast<size_t>(sample[1])];
+    const auto& a2 = a_[static_cast<size_t>(sample[2])];
+    const auto& b0 = b_[static_cast<size_t>(sample[0])];
+    const auto& b1 = b_[static_cast<size_t>(sample[1])];
+    const auto& b2 = b_[static_cast<size_t>(sample[2])];
+    if (Collinear(a0, a1, a2, options_.inlier_base) || Collinear(b0, b1, b2, options_.inlier_base))
+      return std::nullopt;
+    // A rigid motion keeps distances: a pair whose distances differ by more than both
+    // thresholds together cannot be two inliers, and the fit would be wasted.
+    for (int p = 0; p < 3; ++p) {
+      const size_t i = static_cast<size_t>(sample[static_cast<size_t>(p)]);
+      const size_t j = static_cast<size_t>(sample[static_cast<size_t>((p + 1) % 3)]);
+      if (std::abs((a_[i] - a_[j]).norm() - (b_[i] - b_[j]).norm()) > threshold_[i] + threshold_[j])
+        return std::nullopt;
+    }
+    return Fit(a_, b_, sample);
+  }
+  Score Evaluate(const Model& T) const { return sdoslam::Score(T, a_, b_, threshold_, nullptr); }
+  static bool Better(const Consensus& x, const Consensus& y) { return sdoslam::Better(x, y); }
+  static void Improve(Model*, Score*) {}
+  int Iterations(const Consensus& best) const {
+    return AdaptiveIterations(static_cast<double>(best.count) / static_cast<double>(a_.size()),
+                              options_.confidence, options_.max_iterations);
+  }
+  static Consensus Worst() { return {}; }
+
+ private:
+  // mt19937 is specified to the bit and the indices are taken from its raw output (not through a
+  // distribution, whose algorithm the standard leaves open), so the samples are the same on
+  // every platform.
+  int Draw() { return static_cast<int>(rng_() % a_.size()); }
+
+  const std::vector<Eigen::Vector3d>& a_;
+  const std::vector<Eigen::Vector3d>& b_;
+  const std::vector<double>& threshold_;
+  const RigidRansacOptions& options_;
+  std::mt19937 rng_;
+};
+
 }  // namespace
 
 void RigidRansacOptions::Check(const std::string& path) const {
@@ -135,51 +196,11 @@ RigidRansacResult EstimateRigidTransformRansac(const std::vector<Eigen::Vector3d
   for (size_t i = 0; i < n; ++i)
     threshold[i] = options.inlier_base + options.inlier_per_depth2 * b[i].z() * b[i].z();
 
-  // mt19937 is specified to the bit and the indices are taken from its raw output (not through a
-  // distribution, whose algorithm the standard leaves open), so the samples are the same on
-  // every platform.
-  std::mt19937 rng(options.seed);
-  auto draw = [&] { return static_cast<int>(rng() % n); };
-
-  Consensus best;
-  best.count = 0;
-  Eigen::Isometry3d best_T = Eigen::Isometry3d::Identity();
-  int needed = options.max_iterations;
-  std::vector<int> sample(3);
-  while (result.iterations < needed) {
-    ++result.iterations;
-    sample[0] = draw();
-    do sample[1] = draw();
-    while (sample[1] == sample[0]);
-    do sample[2] = draw();
-    while (sample[2] == sample[0] || sample[2] == sample[1]);
-    const auto& a0 = a[static_cast<size_t>(sample[0])];
-    const auto& a1 = a[static_cast<size_t>(sample[1])];
-    const auto& a2 = a[static_cast<size_t>(sample[2])];
-    const auto& b0 = b[static_cast<size_t>(sample[0])];
-    const auto& b1 = b[static_cast<size_t>(sample[1])];
-    const auto& b2 = b[static_cast<size_t>(sample[2])];
-    if (Collinear(a0, a1, a2, options.inlier_base) || Collinear(b0, b1, b2, options.inlier_base))
-      continue;
-    // A rigid motion keeps distances: a pair whose distances differ by more than both
-    // thresholds together cannot be two inliers, and the fit would be wasted.
-    bool consistent = true;
-    for (int p = 0; p < 3 && consistent; ++p) {
-      const size_t i = static_cast<size_t>(sample[p]), j = static_cast<size_t>(sample[(p + 1) % 3]);
-      consistent =
-          std::abs((a[i] - a[j]).norm() - (b[i] - b[j]).norm()) <= threshold[i] + threshold[j];
-    }
-    if (!consistent) continue;
-    const Eigen::Isometry3d T = Fit(a, b, sample);
-    const Consensus c = Score(T, a, b, threshold, nullptr);
-    if (Better(c, best)) {
-      best = c;
-      best_T = T;
-      needed = AdaptiveIterations(static_cast<double>(c.count) / static_cast<double>(n),
-                                  options.confidence, options.max_iterations);
-    }
-  }
-  if (best.count < 3) return result;
+  RigidProblem problem(a, b, threshold, options);
+  const RansacOutcome<Eigen::Isometry3d, Consensus> outcome = Ransac(problem);
+  result.iterations = outcome.iterations;
+  if (!outcome.model || outcome.score.count < 3) return result;
+  const Eigen::Isometry3d& best_T = *outcome.model;
 
   // Refit on all inliers; the first refit is always taken (a least-squares fit on the whole
   // consensus beats one on 3 of its points), later ones only while they keep the inliers.

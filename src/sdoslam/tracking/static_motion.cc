@@ -3,10 +3,12 @@
 #include <Eigen/Geometry>
 #include <array>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 #include <random>
 
 #include "sdoslam/core/error.h"
 #include "sdoslam/optim/optimizer.h"
+#include "sdoslam/optim/ransac.h"
 
 namespace sdoslam {
 
@@ -108,6 +110,58 @@ int CountMotionInliers(const StaticMotionOptions& options, const PinholeIntrinsi
   return inliers;
 }
 
+// The RANSAC problem (optim/ransac.h): minimal sets of 3 samples fitted by Umeyama's method,
+// scored by their inliers, a fixed number of samples, each new best refitted to its inliers.
+class StaticMotionProblem {
+ public:
+  using Model = Eigen::Isometry3d;
+  using Score = int;
+
+  StaticMotionProblem(const StaticMotionOptions& options, const PinholeIntrinsics& k,
+                      const std::vector<MotionCorrespondence>& matches)
+      : options_(options),
+        k_(k),
+        matches_(matches),
+        random_(options.seed),
+        pick_(0, matches.size() - 1) {}
+
+  std::optional<Model> Hypothesis() {
+    const std::array<size_t, 3> s{pick_(random_), pick_(random_), pick_(random_)};
+    if (s[0] == s[1] || s[0] == s[2] || s[1] == s[2]) return std::nullopt;
+    Eigen::Matrix3d from, to;
+    for (int c = 0; c < 3; ++c) {
+      from.col(c) = matches_[s[static_cast<size_t>(c)]].past_world;
+      to.col(c) = matches_[s[static_cast<size_t>(c)]].current_camera;
+    }
+    // A nearly collinear sample fixes no rotation about its line.
+    const Eigen::Vector3d a = from.col(1) - from.col(0), b = from.col(2) - from.col(0);
+    if (a.cross(b).norm() < 0.05 * a.norm() * b.norm()) return std::nullopt;
+    return Eigen::Isometry3d(Eigen::umeyama(from, to, false));
+  }
+  int Evaluate(const Model& T) const { return CountMotionInliers(options_, k_, matches_, T); }
+  static bool Better(int inliers, int best) { return inliers > best; }
+  // Local optimisation (LO-RANSAC): three samples' depths are noisy, so a good draw explains
+  // only part of its motion's samples; the fit to all its inliers explains them all.
+  void Improve(Model* T, int* inliers) const {
+    for (int round = 0; round < 2; ++round) {
+      const Eigen::Isometry3d refit = FitToInliers(options_, k_, matches_, *T);
+      const int refit_inliers = Evaluate(refit);
+      if (refit_inliers <= *inliers) break;
+      *T = refit;
+      *inliers = refit_inliers;
+    }
+  }
+  int Iterations(int) const { return options_.hypotheses; }
+  static int Worst() { return -1; }
+
+ private:
+  const StaticMotionOptions& options_;
+  const PinholeIntrinsics& k_;
+  const std::vector<MotionCorrespondence>& matches_;
+  std::mt19937 random_;
+  std::uniform_int_distribution<size_t> pick_;
+};
+
 StaticMotionResult FindStaticMotion(const StaticMotionOptions& options, const PinholeIntrinsics& k,
                                     const std::vector<MotionCorrespondence>& matches,
                                     const Eigen::Isometry3d& rough) {
@@ -125,36 +179,10 @@ StaticMotionResult FindStaticMotion(const StaticMotionOptions& options, const Pi
   // that the gain is out of reach, it stays (most frames of a static scene end here).
   if (!clearly_more(static_cast<double>(matches.size()))) return result;
 
-  std::mt19937 random(options.seed);
-  std::uniform_int_distribution<size_t> pick(0, matches.size() - 1);
-  Eigen::Isometry3d best = rough;
-  int best_inliers = -1;
-  for (int h = 0; h < options.hypotheses; ++h) {
-    const std::array<size_t, 3> s{pick(random), pick(random), pick(random)};
-    if (s[0] == s[1] || s[0] == s[2] || s[1] == s[2]) continue;
-    Eigen::Matrix3d from, to;
-    for (int c = 0; c < 3; ++c) {
-      from.col(c) = matches[s[static_cast<size_t>(c)]].past_world;
-      to.col(c) = matches[s[static_cast<size_t>(c)]].current_camera;
-    }
-    // A nearly collinear sample fixes no rotation about its line.
-    const Eigen::Vector3d a = from.col(1) - from.col(0), b = from.col(2) - from.col(0);
-    if (a.cross(b).norm() < 0.05 * a.norm() * b.norm()) continue;
-    Eigen::Isometry3d T(Eigen::umeyama(from, to, false));
-    int inliers = CountMotionInliers(options, k, matches, T);
-    if (inliers <= best_inliers) continue;
-    // Local optimisation (LO-RANSAC): three samples' depths are noisy, so a good draw explains
-    // only part of its motion's samples; the fit to all its inliers explains them all.
-    for (int round = 0; round < 2; ++round) {
-      const Eigen::Isometry3d refit = FitToInliers(options, k, matches, T);
-      const int refit_inliers = CountMotionInliers(options, k, matches, refit);
-      if (refit_inliers <= inliers) break;
-      T = refit;
-      inliers = refit_inliers;
-    }
-    best_inliers = inliers;
-    best = T;
-  }
+  StaticMotionProblem problem(options, k, matches);
+  const RansacOutcome<Eigen::Isometry3d, int> outcome = Ransac(problem);
+  Eigen::Isometry3d best = outcome.model.value_or(rough);
+  int best_inliers = outcome.score;
   if (!clearly_more(best_inliers)) return result;
   // Refine on the inliers by their reprojection error (the depth of a sample is noisier than
   // its position), twice: the inlier set grows as the pose settles.
