@@ -105,9 +105,9 @@ void PrintBlocks(const RunSummary& s, const std::vector<BlockEnd>& blocks) {
   }
 }
 
-// Runs the same sequence several times and reports the median over runs of each run's median
-// per-frame and per-keyframe times: this machine is noisy, single runs are not worth quoting.
-void RunBench(const BenchArgs& args) {
+// The run options of a bench: the dataset and config given, or a synthetic scenario rendered
+// into the work folder once and reused.
+RunOptions BenchBase(const BenchArgs& args) {
   std::filesystem::path dataset = args.dataset;
   RunOptions base;
   if (dataset.empty()) {
@@ -129,10 +129,18 @@ void RunBench(const BenchArgs& args) {
     if (args.config.empty()) throw Error("--config is required with --dataset");
     base = LoadRunConfig(args.config);
   }
+  base.dataset = dataset;
+  return base;
+}
+
+// Runs the same sequence several times and reports the median over runs of each run's median
+// per-frame and per-keyframe times: this machine is noisy, single runs are not worth quoting.
+void RunBench(const BenchArgs& args) {
+  RunOptions base = BenchBase(args);
   args.overrides.ApplyTo(&base);
   base.slam.sequential = !args.threaded;
   base.camera_rate = args.camera_rate;
-  base.dataset = dataset;
+  const std::filesystem::path& dataset = base.dataset;
   base.evaluate_masks = false;  // no mask scores here: the timings are the system's alone
   const bool front_end = base.mode == RunMode::kSdo;
   std::vector<double> frame_ms, mapping_ms, ate, total_ms, front_ms;

@@ -70,6 +70,70 @@ MaskEvaluator::MaskEvaluator(const std::filesystem::path& sequence) : sequence_(
   }
 }
 
+namespace {
+
+void Count(bool is, bool said, MaskCounts* c) {
+  c->true_positive += is && said;
+  c->false_positive += !is && said;
+  c->false_negative += is && !said;
+  c->true_negative += !is && !said;
+}
+
+// Every pixel: ground truth (non-zero: moving) against the prediction.
+MaskCounts CountPixels(const cv::Mat& truth, const cv::Mat& predicted) {
+  MaskCounts counts;
+  for (int y = 0; y < truth.rows; ++y) {
+    const uint8_t* t = truth.ptr<uint8_t>(y);
+    const uint8_t* p = predicted.ptr<uint8_t>(y);
+    for (int x = 0; x < truth.cols; ++x) Count(t[x] != 0, p[x] != 0, &counts);
+  }
+  return counts;
+}
+
+// One class's moving pixels (`mask`), and the mistakes inside its objects' boxes grown by a
+// tenth on each side: the class's own score, not the whole image's.
+MaskCounts CountInGrownBoxes(const cv::Mat& mask, const cv::Mat& truth, const cv::Mat& predicted) {
+  cv::Mat region(truth.size(), CV_8U, cv::Scalar(0));
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
+  for (const auto& c : contours) {
+    cv::Rect r = cv::boundingRect(c);
+    const int gx = r.width / 10, gy = r.height / 10;
+    r = cv::Rect(r.x - gx, r.y - gy, r.width + 2 * gx, r.height + 2 * gy) &
+        cv::Rect(0, 0, truth.cols, truth.rows);
+    region(r).setTo(255);
+  }
+  MaskCounts c;
+  for (int y = 0; y < truth.rows; ++y) {
+    const uint8_t* m = mask.ptr<uint8_t>(y);
+    const uint8_t* r = region.ptr<uint8_t>(y);
+    const uint8_t* t = truth.ptr<uint8_t>(y);
+    const uint8_t* p = predicted.ptr<uint8_t>(y);
+    for (int x = 0; x < truth.cols; ++x) {
+      if (m[x]) {
+        (p[x] ? c.true_positive : c.false_negative) += 1;
+      } else if (r[x] && !t[x]) {
+        (p[x] ? c.false_positive : c.true_negative) += 1;
+      }
+    }
+  }
+  return c;
+}
+
+// The features at their nearest pixel: ground truth against their labels (non-zero: dynamic).
+MaskCounts CountFeatures(const cv::Mat& truth, const std::vector<cv::Point2f>& features,
+                         const std::vector<uint8_t>& feature_labels) {
+  MaskCounts counts;
+  for (size_t i = 0; i < features.size(); ++i) {
+    const int x = std::clamp(static_cast<int>(std::lround(features[i].x)), 0, truth.cols - 1);
+    const int y = std::clamp(static_cast<int>(std::lround(features[i].y)), 0, truth.rows - 1);
+    Count(truth.at<uint8_t>(y, x) != 0, feature_labels[i] != 0, &counts);
+  }
+  return counts;
+}
+
+}  // namespace
+
 void MaskEvaluator::AddFrame(const std::filesystem::path& rgb_path, const cv::Mat& predicted,
                              const std::vector<cv::Point2f>& features,
                              const std::vector<uint8_t>& feature_labels) {
@@ -85,19 +149,7 @@ void MaskEvaluator::AddFrame(const std::filesystem::path& rgb_path, const cv::Ma
   cv::Mat instance32;
   instance.convertTo(instance32, CV_32S);
 
-  MaskCounts frame;
-  for (int y = 0; y < truth.rows; ++y) {
-    const uint8_t* t = truth.ptr<uint8_t>(y);
-    const uint8_t* p = predicted.ptr<uint8_t>(y);
-    for (int x = 0; x < truth.cols; ++x) {
-      const bool is = t[x] != 0, said = p[x] != 0;
-      frame.true_positive += is && said;
-      frame.false_positive += !is && said;
-      frame.false_negative += is && !said;
-      frame.true_negative += !is && !said;
-    }
-  }
-  result_.pixels += frame;
+  result_.pixels += CountPixels(truth, predicted);
 
   // Per class: moving pixels of the class, and mistakes inside its objects' grown boxes.
   std::vector<cv::Mat> class_truth(class_names_.size());
@@ -117,44 +169,12 @@ void MaskEvaluator::AddFrame(const std::filesystem::path& rgb_path, const cv::Ma
   for (size_t slot = 0; slot < class_truth.size(); ++slot) {
     const cv::Mat& mask = class_truth[slot];
     if (mask.empty()) continue;
-    cv::Mat region(truth.size(), CV_8U, cv::Scalar(0));
-    std::vector<std::vector<cv::Point>> contours;
-    cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
-    for (const auto& c : contours) {
-      cv::Rect r = cv::boundingRect(c);
-      const int gx = r.width / 10, gy = r.height / 10;
-      r = cv::Rect(r.x - gx, r.y - gy, r.width + 2 * gx, r.height + 2 * gy) &
-          cv::Rect(0, 0, truth.cols, truth.rows);
-      region(r).setTo(255);
-    }
-    MaskCounts c;
-    for (int y = 0; y < truth.rows; ++y) {
-      const uint8_t* m = mask.ptr<uint8_t>(y);
-      const uint8_t* r = region.ptr<uint8_t>(y);
-      const uint8_t* t = truth.ptr<uint8_t>(y);
-      const uint8_t* p = predicted.ptr<uint8_t>(y);
-      for (int x = 0; x < truth.cols; ++x) {
-        if (m[x]) {
-          (p[x] ? c.true_positive : c.false_negative) += 1;
-        } else if (r[x] && !t[x]) {
-          (p[x] ? c.false_positive : c.true_negative) += 1;
-        }
-      }
-    }
-    result_.per_class[class_names_[slot]] += c;
+    result_.per_class[class_names_[slot]] += CountInGrownBoxes(mask, truth, predicted);
   }
 
   if (features.size() != feature_labels.size())
     throw Error("mask evaluation: feature positions and labels differ in number");
-  for (size_t i = 0; i < features.size(); ++i) {
-    const int x = std::clamp(static_cast<int>(std::lround(features[i].x)), 0, truth.cols - 1);
-    const int y = std::clamp(static_cast<int>(std::lround(features[i].y)), 0, truth.rows - 1);
-    const bool is = truth.at<uint8_t>(y, x) != 0, said = feature_labels[i] != 0;
-    result_.features.true_positive += is && said;
-    result_.features.false_positive += !is && said;
-    result_.features.false_negative += is && !said;
-    result_.features.true_negative += !is && !said;
-  }
+  result_.features += CountFeatures(truth, features, feature_labels);
   ++result_.frames;
 }
 

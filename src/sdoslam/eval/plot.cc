@@ -136,8 +136,11 @@ std::string TickLabel(double v, double step) {
   return b;
 }
 
-void Draw(const Plot& plot, Canvas& canvas, int width, int height) {
-  // Data bounds.
+// The series' bounds, 5 % wider on each side (a unit square when there is no data).
+struct Bounds {
+  double x0, x1, y0, y1;
+};
+Bounds PaddedDataBounds(const Plot& plot) {
   double x0 = std::numeric_limits<double>::infinity(), x1 = -x0, y0 = x0, y1 = -x0;
   for (const auto& s : plot.series) {
     for (const auto& p : s.points) {
@@ -157,6 +160,11 @@ void Draw(const Plot& plot, Canvas& canvas, int width, int height) {
   pad(x0, x1);
   pad(y0, y1);
 
+  return {x0, x1, y0, y1};
+}
+
+void Draw(const Plot& plot, Canvas& canvas, int width, int height) {
+  auto [x0, x1, y0, y1] = PaddedDataBounds(plot);
   const double left = 100, right = width - 30, top = 50, bottom = height - 70;
   if (plot.equal_aspect) {  // widen the narrower axis so metres are square
     const double sx = (x1 - x0) / (right - left), sy = (y1 - y0) / (bottom - top);

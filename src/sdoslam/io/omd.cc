@@ -349,34 +349,9 @@ void AddViconRows(const std::string& body, const Trajectory& trajectory,
   }
 }
 
-}  // namespace
-
-OmdWriteOptions OmdWriteOptions::ExampleApparatus() {
-  OmdWriteOptions o;
-  o.T_apparatus_left.linear() = (Eigen::AngleAxisd(-M_PI / 2, Eigen::Vector3d::UnitZ()) *
-                                 Eigen::AngleAxisd(-M_PI / 2, Eigen::Vector3d::UnitX()))
-                                    .toRotationMatrix();
-  o.T_apparatus_left.translation() = Eigen::Vector3d(0.10, 0.0, -0.05);
-  o.T_cam1_cam0.translation() = Eigen::Vector3d(-0.11, 0, 0);
-  o.T_cam2_cam1.linear() = Eigen::AngleAxisd(0.02, Eigen::Vector3d::UnitY()).toRotationMatrix();
-  o.T_cam2_cam1.translation() = Eigen::Vector3d(-0.06, 0.004, 0.002);
-  return o;
-}
-
-void WriteOmdFromTum(const std::filesystem::path& tum, const std::filesystem::path& out,
-                     const OmdWriteOptions& options, bool overwrite) {
-  if (!(options.vicon_rate_hz > 0)) throw Error("vicon_rate_hz must be positive");
-  const CameraOptions camera = LoadCameraConfig(tum / "camera.yaml");
-  const TumDataset dataset(tum, camera);
-  const Trajectory ground_truth = ReadTumTrajectory(tum / "groundtruth.txt");
-  OutputFolderOptions folder_options;
-  folder_options.kind = kOmdSegmentKind;
-  folder_options.overwrite = overwrite;
-  folder_options.inputs = {tum};
-  OutputFolder folder(out, folder_options);
-  const std::filesystem::path& staging = folder.staging();
-  std::filesystem::create_directories(staging / "rgbd");
-
+// rgbd/: the frames as OMD names them (depth in millimetres) and rgbd.csv.
+void WriteOmdFrames(const TumDataset& dataset, const CameraOptions& camera,
+                    const std::filesystem::path& staging) {
   std::string list = "frame_num,time_sec,time_nsec\n";
   for (size_t k = 0; k < dataset.size(); ++k) {
     const RgbdFrameEntry& e = dataset.entries()[k];
@@ -397,9 +372,12 @@ void WriteOmdFromTum(const std::filesystem::path& tum, const std::filesystem::pa
                         std::llround((e.timestamp - static_cast<double>(sec)) * 1e9));
   }
   WriteFileAtomically(staging / "rgbd" / "rgbd.csv", [&](std::ostream& o) { o << list; });
+}
 
-  // The camera chain: left stereo (cam0), right stereo (cam1), colour (cam2).
-  const Eigen::Isometry3d T_left_rgb = (options.T_cam2_cam1 * options.T_cam1_cam0).inverse();
+// kalibr.yaml (the camera chain: left stereo cam0, right stereo cam1, colour cam2) and
+// vicon.yaml.
+void WriteOmdCalibration(const CameraOptions& camera, const OmdWriteOptions& options,
+                         const std::filesystem::path& staging) {
   YAML::Emitter kalibr;
   kalibr << YAML::BeginMap;
   for (int n = 0; n < 3; ++n) {
@@ -434,7 +412,13 @@ void WriteOmdFromTum(const std::filesystem::path& tum, const std::filesystem::pa
   vicon_yaml << YAML::EndMap;
   WriteFileAtomically(staging / "vicon.yaml",
                       [&](std::ostream& o) { o << vicon_yaml.c_str() << '\n'; });
+}
 
+// vicon.csv: the apparatus (from the camera's ground truth) and each object of
+// object_poses.txt, at the Vicon rate.
+void WriteOmdVicon(const std::filesystem::path& tum, const Trajectory& ground_truth,
+                   const OmdWriteOptions& options, const std::filesystem::path& staging) {
+  const Eigen::Isometry3d T_left_rgb = (options.T_cam2_cam1 * options.T_cam1_cam0).inverse();
   // Vicon samples from the first frame to the last at the Vicon rate, and the last frame.
   std::vector<double> times;
   const double first = ground_truth.front().timestamp, last = ground_truth.back().timestamp;
@@ -471,6 +455,39 @@ void WriteOmdFromTum(const std::filesystem::path& tum, const std::filesystem::pa
          "m11,m12,m13,m14,m21,m22,m23,m24,m31,m32,m33,m34,m41,m42,m43,m44\n";
     for (const auto& [t, row] : rows) o << row;
   });
+}
+
+}  // namespace
+
+OmdWriteOptions OmdWriteOptions::ExampleApparatus() {
+  OmdWriteOptions o;
+  o.T_apparatus_left.linear() = (Eigen::AngleAxisd(-M_PI / 2, Eigen::Vector3d::UnitZ()) *
+                                 Eigen::AngleAxisd(-M_PI / 2, Eigen::Vector3d::UnitX()))
+                                    .toRotationMatrix();
+  o.T_apparatus_left.translation() = Eigen::Vector3d(0.10, 0.0, -0.05);
+  o.T_cam1_cam0.translation() = Eigen::Vector3d(-0.11, 0, 0);
+  o.T_cam2_cam1.linear() = Eigen::AngleAxisd(0.02, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  o.T_cam2_cam1.translation() = Eigen::Vector3d(-0.06, 0.004, 0.002);
+  return o;
+}
+
+void WriteOmdFromTum(const std::filesystem::path& tum, const std::filesystem::path& out,
+                     const OmdWriteOptions& options, bool overwrite) {
+  if (!(options.vicon_rate_hz > 0)) throw Error("vicon_rate_hz must be positive");
+  const CameraOptions camera = LoadCameraConfig(tum / "camera.yaml");
+  const TumDataset dataset(tum, camera);
+  const Trajectory ground_truth = ReadTumTrajectory(tum / "groundtruth.txt");
+  OutputFolderOptions folder_options;
+  folder_options.kind = kOmdSegmentKind;
+  folder_options.overwrite = overwrite;
+  folder_options.inputs = {tum};
+  OutputFolder folder(out, folder_options);
+  const std::filesystem::path& staging = folder.staging();
+  std::filesystem::create_directories(staging / "rgbd");
+
+  WriteOmdFrames(dataset, camera, staging);
+  WriteOmdCalibration(camera, options, staging);
+  WriteOmdVicon(tum, ground_truth, options, staging);
   folder.Commit();
 }
 

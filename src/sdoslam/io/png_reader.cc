@@ -82,15 +82,19 @@ struct DecompressorDeleter {
   void operator()(libdeflate_decompressor* d) const { libdeflate_free_decompressor(d); }
 };
 
-}  // namespace
-
-std::optional<cv::Mat> DecodePng(std::span<const uint8_t> bytes) {
-  if (bytes.size() < kSignature.size() ||
-      std::memcmp(bytes.data(), kSignature.data(), kSignature.size()) != 0)
-    return std::nullopt;
+// The header and the concatenated image data of a PNG of the kinds we decode; nullopt for
+// anything else (OpenCV's decoder then reads it) and for a damaged file.
+struct PngChunks {
   uint32_t width = 0, height = 0;
   int bit_depth = 0, colour_type = -1;
   std::vector<uint8_t> compressed;
+};
+
+std::optional<PngChunks> ReadChunks(std::span<const uint8_t> bytes) {
+  if (bytes.size() < kSignature.size() ||
+      std::memcmp(bytes.data(), kSignature.data(), kSignature.size()) != 0)
+    return std::nullopt;
+  PngChunks png;
   bool ended = false;
   for (size_t at = kSignature.size(); !ended;) {
     if (bytes.size() - at < 12) return std::nullopt;  // truncated
@@ -102,16 +106,16 @@ std::optional<cv::Mat> DecodePng(std::span<const uint8_t> bytes) {
     const bool first = at == kSignature.size();
     if (std::memcmp(type, "IHDR", 4) == 0) {
       if (!first || length != 13) return std::nullopt;
-      width = BigEndian32(data);
-      height = BigEndian32(data + 4);
-      bit_depth = data[8];
-      colour_type = data[9];
+      png.width = BigEndian32(data);
+      png.height = BigEndian32(data + 4);
+      png.bit_depth = data[8];
+      png.colour_type = data[9];
       // Compression, filter method and interlacing: only method 0, and no Adam7.
       if (data[10] != 0 || data[11] != 0 || data[12] != 0) return std::nullopt;
     } else if (first) {
       return std::nullopt;
     } else if (std::memcmp(type, "IDAT", 4) == 0) {
-      compressed.insert(compressed.end(), data, data + length);
+      png.compressed.insert(png.compressed.end(), data, data + length);
     } else if (std::memcmp(type, "IEND", 4) == 0) {
       ended = true;
     } else if ((type[0] & 0x20) == 0 || std::memcmp(type, "tRNS", 4) == 0 ||
@@ -122,36 +126,13 @@ std::optional<cv::Mat> DecodePng(std::span<const uint8_t> bytes) {
     }
     at += size_t{length} + 12;
   }
-  const int channels = colour_type == 0 ? 1 : colour_type == 2 ? 3 : colour_type == 6 ? 4 : 0;
-  if (channels == 0 || (bit_depth != 8 && bit_depth != 16) || width == 0 || height == 0 ||
-      width > 0x7fffffffu || height > 0x7fffffffu ||
-      uint64_t{width} * uint64_t{height} > kMaxPixels)
-    return std::nullopt;
+  return png;
+}
 
-  const size_t bytes_per_sample = static_cast<size_t>(bit_depth / 8);
-  const size_t bpp = bytes_per_sample * static_cast<size_t>(channels);
-  const size_t stride = size_t{width} * bpp;
-  const size_t raw_size = size_t{height} * (stride + 1);
-  // DEFLATE expands at most about 1032:1; a header that promises more than its data can hold
-  // would make us allocate gigabytes for a few bytes of file.
-  if (raw_size / 1032 > compressed.size() + 64) return std::nullopt;
-  std::vector<uint8_t> raw(raw_size);
-  const std::unique_ptr<libdeflate_decompressor, DecompressorDeleter> decompressor(
-      libdeflate_alloc_decompressor());
-  if (!decompressor) return std::nullopt;
-  size_t produced = 0;
-  if (libdeflate_zlib_decompress(decompressor.get(), compressed.data(), compressed.size(),
-                                 raw.data(), raw.size(), &produced) != LIBDEFLATE_SUCCESS ||
-      produced != raw.size())
-    return std::nullopt;
-
-  const std::vector<uint8_t> zeros(stride, 0);
-  for (size_t y = 0; y < height; ++y) {
-    uint8_t* row = raw.data() + y * (stride + 1);
-    const uint8_t* previous = y == 0 ? zeros.data() : row - stride;  // the row above, unfiltered
-    if (!Unfilter(row[0], row + 1, previous, stride, bpp)) return std::nullopt;
-  }
-
+// The unfiltered rows of `raw` (each behind its filter byte, `stride` bytes) as an OpenCV image:
+// BGR(A), native 16-bit samples.
+cv::Mat ToMat(std::vector<uint8_t>& raw, uint32_t width, uint32_t height, int bit_depth,
+              int channels, size_t stride) {
   const int rows = static_cast<int>(height), cols = static_cast<int>(width);
   cv::Mat image;
   if (bit_depth == 8) {
@@ -183,6 +164,47 @@ std::optional<cv::Mat> DecodePng(std::span<const uint8_t> bytes) {
     }
   }
   return image;
+}
+
+}  // namespace
+
+std::optional<cv::Mat> DecodePng(std::span<const uint8_t> bytes) {
+  std::optional<PngChunks> png = ReadChunks(bytes);
+  if (!png) return std::nullopt;
+  const uint32_t width = png->width, height = png->height;
+  const int bit_depth = png->bit_depth, colour_type = png->colour_type;
+  const std::vector<uint8_t>& compressed = png->compressed;
+  const int channels = colour_type == 0 ? 1 : colour_type == 2 ? 3 : colour_type == 6 ? 4 : 0;
+  if (channels == 0 || (bit_depth != 8 && bit_depth != 16) || width == 0 || height == 0 ||
+      width > 0x7fffffffu || height > 0x7fffffffu ||
+      uint64_t{width} * uint64_t{height} > kMaxPixels)
+    return std::nullopt;
+
+  const size_t bytes_per_sample = static_cast<size_t>(bit_depth / 8);
+  const size_t bpp = bytes_per_sample * static_cast<size_t>(channels);
+  const size_t stride = size_t{width} * bpp;
+  const size_t raw_size = size_t{height} * (stride + 1);
+  // DEFLATE expands at most about 1032:1; a header that promises more than its data can hold
+  // would make us allocate gigabytes for a few bytes of file.
+  if (raw_size / 1032 > compressed.size() + 64) return std::nullopt;
+  std::vector<uint8_t> raw(raw_size);
+  const std::unique_ptr<libdeflate_decompressor, DecompressorDeleter> decompressor(
+      libdeflate_alloc_decompressor());
+  if (!decompressor) return std::nullopt;
+  size_t produced = 0;
+  if (libdeflate_zlib_decompress(decompressor.get(), compressed.data(), compressed.size(),
+                                 raw.data(), raw.size(), &produced) != LIBDEFLATE_SUCCESS ||
+      produced != raw.size())
+    return std::nullopt;
+
+  const std::vector<uint8_t> zeros(stride, 0);
+  for (size_t y = 0; y < height; ++y) {
+    uint8_t* row = raw.data() + y * (stride + 1);
+    const uint8_t* previous = y == 0 ? zeros.data() : row - stride;  // the row above, unfiltered
+    if (!Unfilter(row[0], row + 1, previous, stride, bpp)) return std::nullopt;
+  }
+
+  return ToMat(raw, width, height, bit_depth, channels, stride);
 }
 
 cv::Mat ReadImage(const std::filesystem::path& path, int imread_flags) {

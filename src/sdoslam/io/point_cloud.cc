@@ -81,28 +81,30 @@ double ReadBinaryScalar(const char* bytes, const Property& p) {
   return static_cast<double>(u);
 }
 
-}  // namespace
+// A PLY header as ReadPly reads it: the vertex element's size and properties.
+struct PlyHeader {
+  bool binary = false;
+  size_t vertex_count = 0;
+  std::vector<Property> properties;
+};
 
-std::vector<ColoredPoint> ReadPly(const std::filesystem::path& path) {
-  RejectNonRegularFile(path);  // before the open: a FIFO would block it
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(path.string() + ": cannot open");
+// Reads the header of `in` up to end_header; `line_number` counts its lines. Throws Error
+// naming `path` and the line.
+PlyHeader ReadPlyHeader(std::istream& in, const std::filesystem::path& path, int* line_number) {
   const auto fail = [&](int line, const std::string& what) -> Error {
     return Error(fmt::format("{}:{}: {}", path.string(), line, what));
   };
+  PlyHeader header;
   std::string line;
-  int line_number = 0;
-  bool binary = false, in_vertex = false, seen_vertex = false;
-  size_t vertex_count = 0;
-  std::vector<Property> properties;
+  bool in_vertex = false, seen_vertex = false;
   while (true) {
-    if (!std::getline(in, line)) throw fail(line_number, "the header has no end_header");
-    ++line_number;
+    if (!std::getline(in, line)) throw fail((*line_number), "the header has no end_header");
+    ++*line_number;
     if (!line.empty() && line.back() == '\r') line.pop_back();
     std::istringstream words(line);
     std::string keyword;
     words >> keyword;
-    if (line_number == 1) {
+    if ((*line_number) == 1) {
       if (keyword != "ply") throw fail(1, "not a PLY file (it does not start with \"ply\")");
       continue;
     }
@@ -112,22 +114,23 @@ std::vector<ColoredPoint> ReadPly(const std::filesystem::path& path) {
       std::string format;
       words >> format;
       if (format == "binary_little_endian") {
-        binary = true;
+        header.binary = true;
       } else if (format != "ascii") {
-        throw fail(line_number, "format " + format + " is not read (ascii, binary_little_endian)");
+        throw fail((*line_number),
+                   "format " + format + " is not read (ascii, binary_little_endian)");
       }
     } else if (keyword == "element") {
       std::string name;
       long long count = -1;
       words >> name >> count;
-      if (!words || count < 0) throw fail(line_number, "malformed element line");
+      if (!words || count < 0) throw fail((*line_number), "malformed element line");
       in_vertex = name == "vertex";
       if (in_vertex) {
-        if (seen_vertex) throw fail(line_number, "a second vertex element");
+        if (seen_vertex) throw fail((*line_number), "a second vertex element");
         seen_vertex = true;
-        vertex_count = static_cast<size_t>(count);
+        header.vertex_count = static_cast<size_t>(count);
       } else if (!seen_vertex) {
-        throw fail(line_number, "element " + name + " before the vertices is not read");
+        throw fail((*line_number), "element " + name + " before the vertices is not read");
       }
     } else if (keyword == "property") {
       if (!in_vertex) continue;  // properties of elements after the vertices: ignored
@@ -135,14 +138,32 @@ std::vector<ColoredPoint> ReadPly(const std::filesystem::path& path) {
       words >> type >> name;
       Property p;
       p.name = name;
-      if (type == "list") throw fail(line_number, "a list property in the vertex element");
-      if (!ParseScalarType(type, &p)) throw fail(line_number, "unknown property type " + type);
-      properties.push_back(p);
+      if (type == "list") throw fail((*line_number), "a list property in the vertex element");
+      if (!ParseScalarType(type, &p)) throw fail((*line_number), "unknown property type " + type);
+      header.properties.push_back(p);
     } else {
-      throw fail(line_number, "unknown header line \"" + line + "\"");
+      throw fail((*line_number), "unknown header line \"" + line + "\"");
     }
   }
-  if (!seen_vertex) throw fail(line_number, "no vertex element");
+  if (!seen_vertex) throw fail(*line_number, "no vertex element");
+  return header;
+}
+
+}  // namespace
+
+std::vector<ColoredPoint> ReadPly(const std::filesystem::path& path) {
+  RejectNonRegularFile(path);  // before the open: a FIFO would block it
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error(path.string() + ": cannot open");
+  const auto fail = [&](int line, const std::string& what) -> Error {
+    return Error(fmt::format("{}:{}: {}", path.string(), line, what));
+  };
+  int line_number = 0;
+  const PlyHeader header = ReadPlyHeader(in, path, &line_number);
+  const bool binary = header.binary;
+  const size_t vertex_count = header.vertex_count;
+  const std::vector<Property>& properties = header.properties;
+  std::string line;
   const char* kWanted[] = {"x", "y", "z", "red", "green", "blue"};
   int index_of[6];
   for (int k = 0; k < 6; ++k) {

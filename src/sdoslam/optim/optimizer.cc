@@ -119,6 +119,56 @@ void BundleAdjustmentOptions::Check(const std::string& path) const {
   if (refine_iterations < 0) throw Error(path + "refine_iterations must be >= 0");
 }
 
+namespace {
+
+// The solver of a bundle adjustment: dense or sparse Schur by the number of free poses, the
+// points eliminated first.
+ceres::Solver::Options BundleSolverOptions(const ceres::Problem& problem,
+                                           BundleAdjustmentProblem* ba,
+                                           std::vector<std::array<double, 7>>* poses,
+                                           long free_poses) {
+  ceres::Solver::Options solver;
+  // After the points are eliminated, a local window's reduced camera system has at most a few
+  // dozen poses: dense Cholesky solves it faster than a sparse factorisation, whose block
+  // bookkeeping dominates at that size (local BA 17 % faster per observation on static_room,
+  // same ATE). A global BA over a large map stays sparse.
+  solver.linear_solver_type =
+      free_poses <= kMaxDenseSchurPoses ? ceres::DENSE_SCHUR : ceres::SPARSE_SCHUR;
+  if (!ceres::IsSparseLinearAlgebraLibraryTypeAvailable(
+          solver.sparse_linear_algebra_library_type)) {
+    solver.linear_solver_type = ceres::DENSE_SCHUR;
+  }
+  // The points are eliminated and the poses form the reduced camera system, as Ceres' own
+  // ordering would choose for this bipartite problem; given here, Ceres does not search for an
+  // independent set of the parameter blocks at each solve (local BA on the mixed play,
+  // sequential: 411 -> 389 ms over 28 keyframes, the same trajectory byte for byte). A group's
+  // blocks are taken in address order, which is their order in `ba->points` and `poses`.
+  auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
+  for (auto& point : ba->points) {
+    if (problem.HasParameterBlock(point.data())) ordering->AddElementToGroup(point.data(), 0);
+  }
+  for (auto& pose : *poses) ordering->AddElementToGroup(pose.data(), 1);
+  solver.linear_solver_ordering = std::move(ordering);
+  return solver;
+}
+
+// Per observation of `ba` at `poses`: whether it lies in front of its camera (in_front_only),
+// or whether its reprojection error passes the χ² test.
+void MarkInliers(const PinholeIntrinsics& k, const BundleAdjustmentProblem& ba,
+                 const std::vector<std::array<double, 7>>& poses, bool in_front_only,
+                 std::vector<bool>* inlier) {
+  for (size_t o = 0; o < ba.observations.size(); ++o) {
+    const auto& obs = ba.observations[o];
+    const Eigen::Isometry3d T = PoseFromParameters(poses[static_cast<size_t>(obs.pose)].data());
+    const Eigen::Vector3d& point = ba.points[static_cast<size_t>(obs.point)];
+    (*inlier)[o] = in_front_only ? (T * point).z() > 1e-6
+                                 : Chi2(k, T, point, obs.measurement) <=
+                                       ReprojectionChi2Threshold(obs.measurement.stereo());
+  }
+}
+
+}  // namespace
+
 std::vector<bool> BundleAdjust(const PinholeIntrinsics& k, BundleAdjustmentProblem* ba,
                                const BundleAdjustmentOptions& options, BundleAdjustmentStats* stats,
                                const std::atomic<bool>* stop) {
@@ -157,28 +207,7 @@ std::vector<bool> BundleAdjust(const PinholeIntrinsics& k, BundleAdjustmentProbl
                                poses[static_cast<size_t>(obs.pose)].data(),
                                ba->points[static_cast<size_t>(obs.point)].data());
     }
-    ceres::Solver::Options solver;
-    // After the points are eliminated, a local window's reduced camera system has at most a few
-    // dozen poses: dense Cholesky solves it faster than a sparse factorisation, whose block
-    // bookkeeping dominates at that size (local BA 17 % faster per observation on static_room,
-    // same ATE). A global BA over a large map stays sparse.
-    solver.linear_solver_type =
-        free_poses <= kMaxDenseSchurPoses ? ceres::DENSE_SCHUR : ceres::SPARSE_SCHUR;
-    if (!ceres::IsSparseLinearAlgebraLibraryTypeAvailable(
-            solver.sparse_linear_algebra_library_type)) {
-      solver.linear_solver_type = ceres::DENSE_SCHUR;
-    }
-    // The points are eliminated and the poses form the reduced camera system, as Ceres' own
-    // ordering would choose for this bipartite problem; given here, Ceres does not search for an
-    // independent set of the parameter blocks at each solve (local BA on the mixed play,
-    // sequential: 411 -> 389 ms over 28 keyframes, the same trajectory byte for byte). A group's
-    // blocks are taken in address order, which is their order in `ba->points` and `poses`.
-    auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
-    for (auto& point : ba->points) {
-      if (problem.HasParameterBlock(point.data())) ordering->AddElementToGroup(point.data(), 0);
-    }
-    for (auto& pose : poses) ordering->AddElementToGroup(pose.data(), 1);
-    solver.linear_solver_ordering = std::move(ordering);
+    ceres::Solver::Options solver = BundleSolverOptions(problem, ba, &poses, free_poses);
     solver.max_num_iterations = iterations;
     solver.num_threads = 1;
     solver.logging_type = ceres::SILENT;
@@ -187,23 +216,12 @@ std::vector<bool> BundleAdjust(const PinholeIntrinsics& k, BundleAdjustmentProbl
     ceres::Solve(solver, &problem, &summary);
     counted.iterations += static_cast<int>(summary.iterations.size());
   };
-  auto classify = [&] {
-    for (size_t o = 0; o < ba->observations.size(); ++o) {
-      const auto& obs = ba->observations[o];
-      const Eigen::Isometry3d T = PoseFromParameters(poses[static_cast<size_t>(obs.pose)].data());
-      inlier[o] = Chi2(k, T, ba->points[static_cast<size_t>(obs.point)], obs.measurement) <=
-                  ReprojectionChi2Threshold(obs.measurement.stereo());
-    }
-  };
+  auto classify = [&] { MarkInliers(k, *ba, poses, /*in_front_only=*/false, &inlier); };
   counted.observations = static_cast<int>(ba->observations.size());
   // A residual cannot be evaluated behind its camera, and Ceres gives up on the whole problem
   // when one fails at the start (seen after loop corrections on walking_xyz): such an
   // observation starts as an outlier; it comes back if the solution puts it in front.
-  for (size_t o = 0; o < ba->observations.size(); ++o) {
-    const auto& obs = ba->observations[o];
-    const Eigen::Isometry3d T = PoseFromParameters(poses[static_cast<size_t>(obs.pose)].data());
-    inlier[o] = (T * ba->points[static_cast<size_t>(obs.point)]).z() > 1e-6;
-  }
+  MarkInliers(k, *ba, poses, /*in_front_only=*/true, &inlier);
   if (!ba->observations.empty()) {
     solve(options.iterations);
     classify();
