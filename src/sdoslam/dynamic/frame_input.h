@@ -4,16 +4,14 @@
 #include <filesystem>
 #include <opencv2/core.hpp>
 
+#include "sdoslam/io/tum_dataset.h"
+
 namespace sdoslam {
 
-// What the dynamic-object front end sees of one frame.
-struct FrontEndFrame {
-  size_t index = 0;
-  double timestamp = 0;
-  std::filesystem::path rgb_path;  // file backends find their per-frame data by its file name
-  cv::Mat bgr;                     // CV_8UC3
-  cv::Mat depth;                   // CV_32F metres, 0 = none; may be empty
-  cv::Mat gray;                    // CV_8UC1, bgr in grey where the caller has it; may be empty
+// What the dynamic-object front end sees of one frame: the frame (its depth may be empty for
+// a front end used alone), and its grey image where the caller has it.
+struct FrontEndFrame : RgbdFrame {
+  cv::Mat gray;  // CV_8UC1, bgr in grey; may be empty
 };
 
 // Per-pixel and per-feature classes of the front end (and of the consistency check, which runs

@@ -147,6 +147,7 @@ RgbdFrame LoadRgbdFrame(const RgbdFrameEntry& entry, size_t index, const CameraO
   frame.index = index;
   frame.timestamp = entry.timestamp;
   frame.depth_timestamp = entry.depth_timestamp;
+  frame.rgb_path = entry.rgb_path;
 
   auto check_size = [&](cv::Size size, const std::filesystem::path& path) {
     if (size.width != camera.width || size.height != camera.height) {

@@ -8,13 +8,16 @@
 
 namespace sdoslam {
 
-// One RGB-D frame, loaded.
+// One RGB-D frame, from reading (a dataset's Load, or a camera) to the pipeline's Prepare.
 struct RgbdFrame {
-  size_t index = 0;
+  size_t index = 0;              // frames are numbered 0, 1, 2, ... in the order they are tracked
   double timestamp = 0.0;        // of the colour image: the frame's time
-  double depth_timestamp = 0.0;  // of the associated depth image
+  double depth_timestamp = 0.0;  // of the associated depth image (a camera may leave it 0)
   cv::Mat bgr;                   // CV_8UC3
-  cv::Mat depth;                 // CV_32FC1, metres; 0 where the sensor gave none or out of range
+  cv::Mat depth;  // CV_32FC1, metres, registered to the colour image; 0 where there is none
+  // The colour image's file: file-backed front ends find their per-frame data by its name.
+  // Empty for a live camera.
+  std::filesystem::path rgb_path;
 };
 
 // What the file lists say about one frame, before anything is decoded.

@@ -43,11 +43,11 @@ Pipeline::Pipeline(const PipelineOptions& options) : options_(options) {
 
 Pipeline::~Pipeline() = default;
 
-FrameOutput Pipeline::Track(RgbdInput input, const cv::Mat& dynamic_mask) {
+FrameOutput Pipeline::Track(RgbdFrame input, const cv::Mat& dynamic_mask) {
   return Finish(Prepare(std::move(input), dynamic_mask));
 }
 
-StagedFrame Pipeline::Prepare(RgbdInput input, const cv::Mat& dynamic_mask) {
+StagedFrame Pipeline::Prepare(RgbdFrame input, const cv::Mat& dynamic_mask) {
   StagedFrame staged;
   staged.started = std::chrono::steady_clock::now();
   const cv::Size image_size(options_.camera.width, options_.camera.height);
@@ -79,7 +79,7 @@ StagedFrame Pipeline::Prepare(RgbdInput input, const cv::Mat& dynamic_mask) {
   const bool beside = front_end_ && options_.extract_beside_front_end;
   if (beside) extraction = std::async(std::launch::async, extract);
   if (front_end_) {
-    FrontEndFrame frame{input.index, input.timestamp, input.rgb_path, input.bgr, input.depth, gray};
+    const FrontEndFrame frame{input, gray};
     staged.sdo = front_end_->Process(frame, &staged.front_end_timing);
     staged.labels = staged.sdo->labels;
     segments = staged.sdo->segments.labels;

@@ -24,15 +24,6 @@ enum class RunMode {
 const char* ToString(RunMode mode);
 RunMode ParseRunMode(const std::string& name);  // throws Error naming the known modes
 
-// One RGB-D frame as a camera or a dataset gives it.
-struct RgbdInput {
-  size_t index = 0;  // frames are numbered 0, 1, 2, ... in the order they are tracked
-  double timestamp = 0;
-  cv::Mat bgr;                     // CV_8UC3
-  cv::Mat depth;                   // CV_32FC1 metres (0 = none), registered to the colour image
-  std::filesystem::path rgb_path;  // file-backed front ends find their per-frame data by its name
-};
-
 // What the pipeline is made of: the camera, SLAM, and how moving things are found.
 struct PipelineOptions {
   CameraOptions camera;
@@ -52,7 +43,7 @@ struct PipelineOptions {
 // A frame after the stages that need no map: the dynamic front end's verdict and the ORB
 // features. Made by Pipeline::Prepare, consumed by Pipeline::Finish.
 struct StagedFrame {
-  RgbdInput input;
+  RgbdFrame input;
   std::optional<SdoResult> sdo;  // kSdo
   cv::Mat labels;                // the per-pixel DynamicLabel image tracking uses; empty: none
   std::vector<uint8_t> locked_segments;
@@ -65,7 +56,7 @@ struct StagedFrame {
 
 // One frame's outcome.
 struct FrameOutput {
-  RgbdInput input;
+  RgbdFrame input;
   TrackingResult tracking;
   // The final per-pixel verdict: the front end's labels, with the segments the consistency check
   // judged moving marked kSceneFlow (empty in conventional mode without a caller's mask).
@@ -97,11 +88,11 @@ class Pipeline {
   // Prepare then Finish. `dynamic_mask`: optional CV_8U image of the frame's size from the
   // caller's own model (non-zero = a moving thing): features there are never tracked nor mapped,
   // in every mode, on top of what the front end finds.
-  FrameOutput Track(RgbdInput input, const cv::Mat& dynamic_mask = cv::Mat());
+  FrameOutput Track(RgbdFrame input, const cv::Mat& dynamic_mask = cv::Mat());
 
   // The stages that need no map. One thread at a time, frames in order. Throws Error for inputs
   // of the wrong size or type, naming the frame.
-  StagedFrame Prepare(RgbdInput input, const cv::Mat& dynamic_mask = cv::Mat());
+  StagedFrame Prepare(RgbdFrame input, const cv::Mat& dynamic_mask = cv::Mat());
   // Tracking (and, sequential, local mapping). Frames in the order they were prepared.
   FrameOutput Finish(StagedFrame&& staged);
 

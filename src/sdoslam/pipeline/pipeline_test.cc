@@ -28,7 +28,7 @@ TEST(PipelineStages, TheWaitBeforeTrackingIsQueuedTimeNotLatency) {
   Pipeline pipeline(options);
   RgbdFrame frame = dataset.Load(0);
   const auto start = std::chrono::steady_clock::now();
-  StagedFrame staged = pipeline.Prepare(RgbdInput{0, frame.timestamp, frame.bgr, frame.depth, {}});
+  StagedFrame staged = pipeline.Prepare(frame);
   constexpr double kWaitMs = 300;
   std::this_thread::sleep_for(std::chrono::duration<double, std::milli>(kWaitMs));
   const FrameOutput out = pipeline.Finish(std::move(staged));
@@ -52,8 +52,7 @@ TEST(PipelineStages, ACallersMaskTakesItsFeaturesOut) {
   RgbdFrame frame = dataset.Load(0);
   cv::Mat mask(frame.bgr.size(), CV_8U, cv::Scalar(0));
   mask(cv::Rect(0, 0, mask.cols / 2, mask.rows)).setTo(255);  // the left half
-  const FrameOutput out =
-      pipeline.Track(RgbdInput{0, frame.timestamp, frame.bgr, frame.depth, {}}, mask);
+  const FrameOutput out = pipeline.Track(frame, mask);
   const TrackingResult& r = out.tracking;
   ASSERT_GT(r.feature_points.size(), 100u);
   int left = 0, right = 0;
@@ -75,7 +74,10 @@ TEST(PipelineStages, ACallersMaskTakesItsFeaturesOut) {
   cv::Mat small;
   cv::resize(frame.bgr, small, cv::Size(320, 240));
   try {
-    pipeline.Track(RgbdInput{1, frame.timestamp + 0.03, small, frame.depth, "x/frame1.png"});
+    RgbdFrame next = frame;
+    next.index = 1;
+    next.bgr = small;
+    pipeline.Track(next);
     ADD_FAILURE() << "a 320x240 image was taken";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("frame 1"), std::string::npos) << e.what();

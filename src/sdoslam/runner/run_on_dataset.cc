@@ -422,10 +422,8 @@ class StagedFrames {
     // The latency a camera would see counts the frame's reading, but not the time a frame read
     // ahead waited for this stage: a camera's frame arrives when it is taken.
     const auto started = std::chrono::steady_clock::now() - loaded->reading;
-    RgbdFrame& frame = loaded->frame;
-    StagedFrame staged = pipeline_->Prepare(
-        RgbdInput{i, frame.timestamp, std::move(frame.bgr), std::move(frame.depth), rgb_paths_[i]},
-        loaded->oracle);
+    loaded->frame.index = i;
+    StagedFrame staged = pipeline_->Prepare(std::move(loaded->frame), loaded->oracle);
     staged.started = started;
     return staged;
   }
