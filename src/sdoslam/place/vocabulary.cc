@@ -72,16 +72,15 @@ inline int Nearest(const uint8_t* d, const uint8_t* centres, int count) {
 // or `iterations` rounds are done. `centres` receives the non-empty clusters' centres (32 bytes
 // each, consecutive) and `groups` their members; every member is nearest (first on ties) to its own
 // group's centre, so the tree's descent retraces the clustering.
-void KMedians(const uint8_t* data, const std::vector<uint32_t>& members, int k, int iterations,
-              std::mt19937& rng, std::vector<uint8_t>* centres,
-              std::vector<std::vector<uint32_t>>* groups) {
+// Greedy k-means++ (as scikit-learn seeds): each step draws a few candidates and keeps the one
+// that lowers the total squared distance most. Plain k-means++ now and then draws two centres in
+// one natural cluster and none in another, which k-medians cannot undo: that cluster is then
+// split between the words of its neighbours. Returns up to k centres (32 bytes each,
+// consecutive); fewer when the members have fewer distinct values.
+std::vector<uint8_t> SeedCentres(const uint8_t* data, const std::vector<uint32_t>& members, int k,
+                                 std::mt19937& rng) {
   const size_t n = members.size();
   auto row = [&](size_t i) { return data + static_cast<size_t>(members[i]) * kBytes; };
-
-  // Greedy k-means++ (as scikit-learn seeds): each step draws a few candidates and keeps the
-  // one that lowers the total squared distance most. Plain k-means++ now and then draws two
-  // centres in one natural cluster and none in another, which k-medians cannot undo: that
-  // cluster is then split between the words of its neighbours.
   const int trials = 2 + static_cast<int>(std::log(static_cast<double>(k)));
   std::vector<uint8_t> c;
   std::vector<uint64_t> d2(n), candidate_d2(n), best_d2(n);
@@ -123,6 +122,47 @@ void KMedians(const uint8_t* data, const std::vector<uint32_t>& members, int k, 
     ++count;
   }
 
+  return c;
+}
+
+// The median of binary vectors under the Hamming distance, per cluster of `assignment`: each
+// bit set where most of its members have it set. An empty cluster keeps its centre.
+void UpdateMedians(const uint8_t* data, const std::vector<uint32_t>& members,
+                   const std::vector<int>& assignment, int count, std::vector<uint8_t>* c) {
+  const size_t n = members.size();
+  auto row = [&](size_t i) { return data + static_cast<size_t>(members[i]) * kBytes; };
+  std::vector<uint32_t> bits(static_cast<size_t>(count) * 256);
+  std::vector<uint32_t> sizes(static_cast<size_t>(count));
+  for (size_t i = 0; i < n; ++i) {
+    uint32_t* b = bits.data() + static_cast<size_t>(assignment[i]) * 256;
+    const uint8_t* d = row(i);
+    for (int byte = 0; byte < kBytes; ++byte) {
+      for (int bit = 0; bit < 8; ++bit) b[byte * 8 + bit] += (d[byte] >> bit) & 1u;
+    }
+    ++sizes[static_cast<size_t>(assignment[i])];
+  }
+  for (int j = 0; j < count; ++j) {
+    if (sizes[static_cast<size_t>(j)] == 0) continue;  // keeps its centre
+    const uint32_t* b = bits.data() + static_cast<size_t>(j) * 256;
+    uint8_t* centre = c->data() + static_cast<size_t>(j) * kBytes;
+    for (int byte = 0; byte < kBytes; ++byte) {
+      uint8_t value = 0;
+      for (int bit = 0; bit < 8; ++bit) {
+        if (2 * b[byte * 8 + bit] > sizes[static_cast<size_t>(j)]) value |= 1u << bit;
+      }
+      centre[byte] = value;
+    }
+  }
+}
+
+void KMedians(const uint8_t* data, const std::vector<uint32_t>& members, int k, int iterations,
+              std::mt19937& rng, std::vector<uint8_t>* centres,
+              std::vector<std::vector<uint32_t>>* groups) {
+  const size_t n = members.size();
+  auto row = [&](size_t i) { return data + static_cast<size_t>(members[i]) * kBytes; };
+
+  std::vector<uint8_t> c = SeedCentres(data, members, k, rng);
+  const int count = static_cast<int>(c.size() / kBytes);
   std::vector<int> assignment(n, -1);
   auto assign = [&] {
     bool changed = false;
@@ -134,33 +174,8 @@ void KMedians(const uint8_t* data, const std::vector<uint32_t>& members, int k, 
     return changed;
   };
   assign();
-  std::vector<uint32_t> bits(static_cast<size_t>(count) * 256);
-  std::vector<uint32_t> sizes(static_cast<size_t>(count));
   for (int round = 0; round < iterations; ++round) {
-    // The median of binary vectors under the Hamming distance: each bit set where most
-    // members have it set.
-    std::fill(bits.begin(), bits.end(), 0u);
-    std::fill(sizes.begin(), sizes.end(), 0u);
-    for (size_t i = 0; i < n; ++i) {
-      uint32_t* b = bits.data() + static_cast<size_t>(assignment[i]) * 256;
-      const uint8_t* d = row(i);
-      for (int byte = 0; byte < kBytes; ++byte) {
-        for (int bit = 0; bit < 8; ++bit) b[byte * 8 + bit] += (d[byte] >> bit) & 1u;
-      }
-      ++sizes[static_cast<size_t>(assignment[i])];
-    }
-    for (int j = 0; j < count; ++j) {
-      if (sizes[static_cast<size_t>(j)] == 0) continue;  // keeps its centre
-      const uint32_t* b = bits.data() + static_cast<size_t>(j) * 256;
-      uint8_t* centre = c.data() + static_cast<size_t>(j) * kBytes;
-      for (int byte = 0; byte < kBytes; ++byte) {
-        uint8_t value = 0;
-        for (int bit = 0; bit < 8; ++bit) {
-          if (2 * b[byte * 8 + bit] > sizes[static_cast<size_t>(j)]) value |= 1u << bit;
-        }
-        centre[byte] = value;
-      }
-    }
+    UpdateMedians(data, members, assignment, count, &c);
     if (!assign()) break;
   }
 
@@ -225,6 +240,61 @@ void Append(std::string* out, const T& value) {
   out->append(reinterpret_cast<const char*>(&value), sizeof(T));
 }
 
+// Every training image's descriptors in one block, rows in image order, checked: at least 2
+// images with features and fewer than 2^32 descriptors in all.
+std::vector<uint8_t> StackDescriptors(const std::vector<cv::Mat>& descriptor_sets) {
+  size_t total = 0;
+  int non_empty = 0;
+  for (size_t i = 0; i < descriptor_sets.size(); ++i) {
+    CheckDescriptors(descriptor_sets[i], fmt::format("training image {}", i));
+    total += static_cast<size_t>(descriptor_sets[i].rows);
+    non_empty += descriptor_sets[i].rows > 0;
+  }
+  if (non_empty < 2) {
+    throw Error(fmt::format("a vocabulary needs at least 2 training images with features; got {}",
+                            non_empty));
+  }
+  if (total >= UINT32_MAX) throw Error("too many training descriptors (at most 2^32 - 1)");
+
+  std::vector<uint8_t> data(total * kBytes);
+  {
+    size_t offset = 0;
+    for (const cv::Mat& set : descriptor_sets) {
+      for (int r = 0; r < set.rows; ++r, offset += kBytes)
+        std::memcpy(data.data() + offset, set.ptr<uint8_t>(r), kBytes);
+    }
+  }
+
+  return data;
+}
+
+// IDF per word of `v`: the log of the training images over those in which the word occurs.
+std::vector<double> IdfWeights(const Vocabulary& v, const std::vector<cv::Mat>& descriptor_sets,
+                               const std::vector<uint8_t>& data) {
+  std::vector<double> weights(v.size(), 0.0);
+  // In how many training images each word occurs.
+  std::vector<uint32_t> images_with(v.size(), 0);
+  std::vector<uint32_t> last_image(v.size(), UINT32_MAX);
+  {
+    size_t offset = 0;
+    for (size_t i = 0; i < descriptor_sets.size(); ++i) {
+      for (int r = 0; r < descriptor_sets[i].rows; ++r, offset += kBytes) {
+        const WordId w = v.WordOf(data.data() + offset);
+        if (last_image[w] != i) {
+          last_image[w] = static_cast<uint32_t>(i);
+          ++images_with[w];
+        }
+      }
+    }
+  }
+  const double images = static_cast<double>(descriptor_sets.size());
+  for (size_t w = 0; w < v.size(); ++w) {
+    // Every leaf holds a training descriptor, so the count is at least 1.
+    weights[w] = std::log(images / std::max<uint32_t>(images_with[w], 1));
+  }
+  return weights;
+}
+
 }  // namespace
 
 void VocabularyOptions::Check() const {
@@ -243,28 +313,8 @@ void VocabularyOptions::Check() const {
 Vocabulary Vocabulary::Train(const std::vector<cv::Mat>& descriptor_sets,
                              const VocabularyOptions& options) {
   options.Check();
-  size_t total = 0;
-  int non_empty = 0;
-  for (size_t i = 0; i < descriptor_sets.size(); ++i) {
-    CheckDescriptors(descriptor_sets[i], fmt::format("training image {}", i));
-    total += static_cast<size_t>(descriptor_sets[i].rows);
-    non_empty += descriptor_sets[i].rows > 0;
-  }
-  if (non_empty < 2) {
-    throw Error(fmt::format("a vocabulary needs at least 2 training images with features; got {}",
-                            non_empty));
-  }
-  if (total >= UINT32_MAX) throw Error("too many training descriptors (at most 2^32 - 1)");
-
-  // All descriptors in one block, rows in image order.
-  std::vector<uint8_t> data(total * kBytes);
-  {
-    size_t offset = 0;
-    for (const cv::Mat& set : descriptor_sets) {
-      for (int r = 0; r < set.rows; ++r, offset += kBytes)
-        std::memcpy(data.data() + offset, set.ptr<uint8_t>(r), kBytes);
-    }
-  }
+  const std::vector<uint8_t> data = StackDescriptors(descriptor_sets);
+  const size_t total = data.size() / kBytes;
 
   Vocabulary v;
   v.branching_ = options.branching;
@@ -309,26 +359,7 @@ Vocabulary Vocabulary::Train(const std::vector<cv::Mat>& descriptor_sets,
   v.Index();
   v.weights_.assign(v.word_count_, 0.0);
 
-  // IDF: in how many training images each word occurs.
-  std::vector<uint32_t> images_with(v.size(), 0);
-  std::vector<uint32_t> last_image(v.size(), UINT32_MAX);
-  {
-    size_t offset = 0;
-    for (size_t i = 0; i < descriptor_sets.size(); ++i) {
-      for (int r = 0; r < descriptor_sets[i].rows; ++r, offset += kBytes) {
-        const WordId w = v.WordOf(data.data() + offset);
-        if (last_image[w] != i) {
-          last_image[w] = static_cast<uint32_t>(i);
-          ++images_with[w];
-        }
-      }
-    }
-  }
-  const double images = static_cast<double>(descriptor_sets.size());
-  for (size_t w = 0; w < v.size(); ++w) {
-    // Every leaf holds a training descriptor, so the count is at least 1.
-    v.weights_[w] = std::log(images / std::max<uint32_t>(images_with[w], 1));
-  }
+  v.weights_ = IdfWeights(v, descriptor_sets, data);
   return v;
 }
 

@@ -207,32 +207,33 @@ void BackgroundSynthOptions::Check() const {
   camera.Check();
 }
 
-SequenceSummary WriteBackgroundSequence(const BackgroundSynthOptions& options,
-                                        const std::filesystem::path& out, bool overwrite) {
-  options.Check();
-  const auto start = std::chrono::steady_clock::now();
-  const TumDataset recording(options.background, options.camera);
-  const std::filesystem::path gt_file = options.background / "groundtruth.txt";
-  if (!std::filesystem::exists(gt_file)) {
-    throw Error(gt_file.string() +
-                " does not exist: a real background needs the recording's ground-truth "
-                "trajectory (TUM format)");
-  }
-  const Trajectory ground_truth = ReadTumTrajectory(gt_file);
+namespace {
 
-  // The frames to play: forward, then back without repeating the turning frame.
+// The recording's frames as they are played (forward, then back without repeating the turning
+// frame, when asked), on a time that runs on, with their ground-truth poses.
+struct Playback {
+  size_t used = 0;            // recorded frames used
+  std::vector<size_t> order;  // recorded frame of each played frame
+  std::vector<double> times;  // seconds from the first played frame
+  Trajectory played;          // the camera at each played frame
+};
+Playback PlayRecording(const TumDataset& recording, const Trajectory& ground_truth,
+                       const BackgroundSynthOptions& options,
+                       const std::filesystem::path& gt_file) {
+  Playback playback;
+  std::vector<size_t>& order = playback.order;
+  std::vector<double>& times = playback.times;
+  Trajectory& played = playback.played;
   const size_t available = recording.size();
-  const size_t used = options.max_frames > 0
-                          ? std::min(available, static_cast<size_t>(options.max_frames))
-                          : available;
-  std::vector<size_t> order;
+  const size_t used = playback.used =
+      options.max_frames > 0 ? std::min(available, static_cast<size_t>(options.max_frames))
+                             : available;
   for (size_t k = 0; k < used; ++k) order.push_back(k);
   if (options.forward_backward) {
     for (size_t k = used - 1; k-- > 0;) order.push_back(k);
   }
   // Played time runs on: each step takes as long as it took in the recording.
-  std::vector<double> times(order.size(), 0.0);
-  Trajectory played;
+  times.assign(order.size(), 0.0);
   for (size_t i = 0; i < order.size(); ++i) {
     const RgbdFrameEntry& entry = recording.entries()[order[i]];
     if (i > 0) {
@@ -247,6 +248,57 @@ SequenceSummary WriteBackgroundSequence(const BackgroundSynthOptions& options,
     }
     played.push_back({times[i], *pose});
   }
+  return playback;
+}
+
+// The rendered objects over a recorded frame: `composite` is the scene as the sensor would see it
+// (z-buffered against the recorded depth; where the sensor saw nothing, the object is in front),
+// and the frame returned keeps the recorded pixels as recorded, except on the objects and the
+// sensor's shadow next to their outlines.
+SensorFrame Composite(const RgbdFrame& background, const RenderedView& objects,
+                      const BackgroundSynthOptions& options, int index, RenderedView* out) {
+  RenderedView& composite = *out;
+  const cv::Mat object_mask =
+      (objects.depth > 0) & ((background.depth <= 0) | (objects.depth < background.depth));
+  background.bgr.convertTo(composite.colour, CV_32FC3, 1.0 / 255.0);
+  objects.colour.copyTo(composite.colour, object_mask);
+  composite.depth = background.depth.clone();
+  objects.depth.copyTo(composite.depth, object_mask);
+  composite.instance = cv::Mat::zeros(objects.instance.size(), CV_16UC1);
+  objects.instance.copyTo(composite.instance, object_mask);
+  const SensorFrame sensed = Sense(composite, options.camera, options.sensor, options.seed, index);
+
+  SensorFrame frame;
+  frame.bgr = background.bgr.clone();
+  sensed.bgr.copyTo(frame.bgr, object_mask);
+  background.depth.convertTo(frame.depth, CV_16UC1, options.camera.depth_factor);
+  cv::Mat near_objects;
+  cv::dilate(object_mask, near_objects, cv::getStructuringElement(cv::MORPH_CROSS, {3, 3}));
+  frame.depth.setTo(0, near_objects & (sensed.depth == 0));
+  sensed.depth.copyTo(frame.depth, object_mask);
+  return frame;
+}
+
+}  // namespace
+
+SequenceSummary WriteBackgroundSequence(const BackgroundSynthOptions& options,
+                                        const std::filesystem::path& out, bool overwrite) {
+  options.Check();
+  const auto start = std::chrono::steady_clock::now();
+  const TumDataset recording(options.background, options.camera);
+  const std::filesystem::path gt_file = options.background / "groundtruth.txt";
+  if (!std::filesystem::exists(gt_file)) {
+    throw Error(gt_file.string() +
+                " does not exist: a real background needs the recording's ground-truth "
+                "trajectory (TUM format)");
+  }
+  const Trajectory ground_truth = ReadTumTrajectory(gt_file);
+
+  const Playback playback = PlayRecording(recording, ground_truth, options, gt_file);
+  const size_t used = playback.used;
+  const std::vector<size_t>& order = playback.order;
+  const std::vector<double>& times = playback.times;
+  const Trajectory& played = playback.played;
   const double first_stamp = recording.entries()[0].timestamp;
   const double duration = times.back();
   const double dt = order.size() > 1 ? duration / (order.size() - 1) : 1.0 / options.camera.fps;
@@ -274,28 +326,9 @@ SequenceSummary WriteBackgroundSequence(const BackgroundSynthOptions& options,
     const Isometry3d& T_world_camera = played[i].T_world_camera;
     const RenderedView objects = Render(scene, t, T_world_camera, camera);
 
-    // Z-buffer against the recorded depth; where the sensor saw nothing, the object is in front.
-    const cv::Mat object_mask =
-        (objects.depth > 0) & ((background.depth <= 0) | (objects.depth < background.depth));
     RenderedView composite;
-    background.bgr.convertTo(composite.colour, CV_32FC3, 1.0 / 255.0);
-    objects.colour.copyTo(composite.colour, object_mask);
-    composite.depth = background.depth.clone();
-    objects.depth.copyTo(composite.depth, object_mask);
-    composite.instance = cv::Mat::zeros(objects.instance.size(), CV_16UC1);
-    objects.instance.copyTo(composite.instance, object_mask);
-    const SensorFrame sensed =
-        Sense(composite, options.camera, options.sensor, options.seed, static_cast<int>(i));
-
-    // Recorded pixels stay as recorded, except the sensor's shadow next to an object's outline.
-    SensorFrame frame;
-    frame.bgr = background.bgr.clone();
-    sensed.bgr.copyTo(frame.bgr, object_mask);
-    background.depth.convertTo(frame.depth, CV_16UC1, options.camera.depth_factor);
-    cv::Mat near_objects;
-    cv::dilate(object_mask, near_objects, cv::getStructuringElement(cv::MORPH_CROSS, {3, 3}));
-    frame.depth.setTo(0, near_objects & (sensed.depth == 0));
-    sensed.depth.copyTo(frame.depth, object_mask);
+    const SensorFrame frame =
+        Composite(background, objects, options, static_cast<int>(i), &composite);
     render_seconds +=
         std::chrono::duration<double>(std::chrono::steady_clock::now() - render_start).count();
     writer.AddFrame(first_stamp + t, t, dt, frame, composite.instance, T_world_camera, scene);

@@ -90,19 +90,18 @@ cv::Rect ScreenBounds(const Primitive& p, const Eigen::Isometry3d& T_camera_worl
   return PixelsOf(camera, sx0, sx1, sy0, sy1) & box;
 }
 
-}  // namespace
-
-RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_world_camera,
-                    const Camera& camera) {
-  const int width = camera.width(), height = camera.height();
+// The primitives the camera may see at time t, each with its screen bounds: the scene's static
+// parts and the objects' parts at t (made into `object_parts`, which the candidates point into).
+std::vector<Candidate> VisibleCandidates(const Scene& scene, double t,
+                                         const Eigen::Isometry3d& T_world_camera,
+                                         const Camera& camera,
+                                         std::vector<Primitive>* object_parts) {
   const Eigen::Isometry3d T_camera_world = T_world_camera.inverse();
   const Eigen::Vector3d origin = T_world_camera.translation();
-
-  std::vector<Primitive> object_parts;
   std::vector<uint16_t> object_ids;
   for (const SceneObject& object : scene.objects) {
     for (Primitive& part : object.parts_at(t)) {
-      object_parts.push_back(std::move(part));
+      object_parts->push_back(std::move(part));
       object_ids.push_back(object.id);
     }
   }
@@ -113,16 +112,21 @@ RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_wor
       candidates.push_back({&p, 0, r, p.T_world_texture.inverse(), RaysFrom(p, origin)});
     }
   }
-  for (size_t k = 0; k < object_parts.size(); ++k) {
-    const cv::Rect r = ScreenBounds(object_parts[k], T_camera_world, camera);
+  for (size_t k = 0; k < object_parts->size(); ++k) {
+    const cv::Rect r = ScreenBounds((*object_parts)[k], T_camera_world, camera);
     if (r.area() > 0) {
-      candidates.push_back({&object_parts[k], object_ids[k], r,
-                            object_parts[k].T_world_texture.inverse(),
-                            RaysFrom(object_parts[k], origin)});
+      candidates.push_back({&(*object_parts)[k], object_ids[k], r,
+                            (*object_parts)[k].T_world_texture.inverse(),
+                            RaysFrom((*object_parts)[k], origin)});
     }
   }
 
-  // Ray directions with z = 1 in the camera frame, so a hit's ray parameter is its depth.
+  return candidates;
+}
+
+// Each pixel's undistorted position (row by row), or none for a camera without distortion.
+std::vector<cv::Point2f> UndistortedPixels(const Camera& camera) {
+  const int width = camera.width(), height = camera.height();
   std::vector<cv::Point2f> pixels;
   if (camera.HasDistortion()) {
     pixels.reserve(static_cast<size_t>(width) * height);
@@ -131,6 +135,21 @@ RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_wor
         pixels.emplace_back(static_cast<float>(u), static_cast<float>(v));
     pixels = camera.UndistortPoints(pixels);
   }
+
+  return pixels;
+}
+
+}  // namespace
+
+RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_world_camera,
+                    const Camera& camera) {
+  const int width = camera.width(), height = camera.height();
+
+  std::vector<Primitive> object_parts;
+  const std::vector<Candidate> candidates =
+      VisibleCandidates(scene, t, T_world_camera, camera, &object_parts);
+  // Ray directions with z = 1 in the camera frame, so a hit's ray parameter is its depth.
+  const std::vector<cv::Point2f> pixels = UndistortedPixels(camera);
 
   RenderedView view;
   view.colour.create(height, width, CV_32FC3);
