@@ -335,13 +335,18 @@ TEST(PipelineLoopClosing, PeopleWalkingThroughTheLoopDoNotStopItClosing) {
   EXPECT_NE(log.find(",run\n"), std::string::npos) << "the global BA ran: " << log;
 }
 
-TEST(Pipeline, SdoOnTheRealStaticDeskIsAsGoodAsConventional) {
-  const auto data = testing::SharedDir() / "data" / "tum_fr2_desk_50";
-  if (!std::filesystem::is_directory(data)) GTEST_SKIP() << data << " absent";
-  testing::TempDir dir;
+// The shared real desk clip (tum_fr2_desk_50) with its camera; the folder may be absent.
+RunOptions RealDeskRun() {
   RunOptions run;
-  run.dataset = data;
+  run.dataset = testing::SharedDir() / "data" / "tum_fr2_desk_50";
   run.camera = LoadCameraConfig(testing::SourceDir() / "configs" / "tum_fr2.yaml");
+  return run;
+}
+
+TEST(Pipeline, SdoOnTheRealStaticDeskIsAsGoodAsConventional) {
+  RunOptions run = RealDeskRun();
+  if (!std::filesystem::is_directory(run.dataset)) GTEST_SKIP() << run.dataset << " absent";
+  testing::TempDir dir;
   double ate[2];
   for (RunMode mode : {RunMode::kConventional, RunMode::kSdo}) {
     run.mode = mode;
@@ -460,12 +465,10 @@ CloudAgreement CheckCloud(const std::filesystem::path& run_out, const RgbdDatase
 // --save-map on the real desk: the cloud lies on the surfaces the frames see (depth agrees
 // where a point is in view) and carries their colours.
 TEST(PipelineMap, TheStaticMapLiesOnTheRealDeskWithItsColours) {
-  const auto data = testing::SharedDir() / "data" / "tum_fr2_desk_50";
+  RunOptions run = RealDeskRun();
+  const auto& data = run.dataset;
   if (!std::filesystem::is_directory(data)) GTEST_SKIP() << data << " absent";
   testing::TempDir dir;
-  RunOptions run;
-  run.dataset = data;
-  run.camera = LoadCameraConfig(testing::SourceDir() / "configs" / "tum_fr2.yaml");
   run.slam.sequential = true;
   run.save_map = true;
   run.out = dir / "out";
@@ -521,14 +524,11 @@ TEST(PipelineMap, PointsOnPeopleStayOutOfTheStaticMap) {
 }
 
 TEST(Pipeline, NanoDetRunsInsideThePipeline) {
-  const auto data = testing::SharedDir() / "data" / "tum_fr2_desk_50";
+  RunOptions run = RealDeskRun();
   const auto model = testing::SharedDir() / "models" / "nanodet-m-320" / "nanodet-m-320.onnx";
-  if (!std::filesystem::is_directory(data) || !std::filesystem::exists(model))
+  if (!std::filesystem::is_directory(run.dataset) || !std::filesystem::exists(model))
     GTEST_SKIP() << "../shared data or models absent";
   testing::TempDir dir;
-  RunOptions run;
-  run.dataset = data;
-  run.camera = LoadCameraConfig(testing::SourceDir() / "configs" / "tum_fr2.yaml");
   run.mode = RunMode::kSdo;
   run.front_end.detector = "nanodet";
   run.front_end.detector_model = model;
