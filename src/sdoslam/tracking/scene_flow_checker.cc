@@ -436,6 +436,7 @@ void SceneFlowChecker::CheckLandmarks(const Frame& frame, const ConsistencyInput
   // The other local landmarks in view: where the depth image sees through the landmark (a
   // surface behind it, nothing in front) it has moved away. (Lying on a region the front end
   // calls dynamic is no evidence: those regions reach over the background around people.)
+  if (!o.cull_seen_through) return;
   const int r = o.depth_window_radius;
   const int width = camera.width(), height = camera.height();
   for (MapPoint* p : local_points) {

@@ -266,6 +266,7 @@ TEST_F(SceneFlowCheckerTest, CheckLandmarksCullsTheMovedAndTheSeenThroughAndClea
   Render(0.4);
   SceneFlowOptions options;
   options.cull_after = 2;
+  options.cull_seen_through = true;
   SceneFlowChecker checker(&map_, options);
   RememberPast(&checker);
   Frame frame = MatchedFrame();
@@ -331,6 +332,14 @@ TEST_F(SceneFlowCheckerTest, CheckLandmarksCullsTheMovedAndTheSeenThroughAndClea
   EXPECT_TRUE(in_front->bad);
   EXPECT_FALSE(on->bad);
   EXPECT_EQ(again.culled_points, 1);
+
+  // With the default options, seeing through a landmark is no strike against it.
+  SceneFlowChecker by_default(&map_, SceneFlowOptions{});
+  MapPoint* seen_through = landmark(0.5 * z, 3);
+  TrackingResult quiet;
+  by_default.CheckLandmarks(frame, input, {}, {seen_through}, &quiet);
+  EXPECT_EQ(seen_through->inconsistent, 0);
+  EXPECT_EQ(quiet.culled_points, 0);
 }
 
 }  // namespace
