@@ -34,6 +34,8 @@ void SceneFlowOptions::Check(const std::string& path) const {
   if (!(max_round_trip_px > 0)) throw Error(path + "max_round_trip_px must be positive");
   if (!(skip_round_trip_px >= 0)) throw Error(path + "skip_round_trip_px must be >= 0");
   if (cull_after < 1) throw Error(path + "cull_after must be >= 1");
+  if (!(seen_through_max_share >= 0 && seen_through_max_share <= 1))
+    throw Error(path + "seen_through_max_share must be in [0, 1]");
   if (depth_window_radius < 0 || depth_window_radius > 10)
     throw Error(path + "depth_window_radius must be in [0, 10]");
   if (!(max_segment_area > 0 && max_segment_area <= 1))

@@ -77,14 +77,13 @@ struct SceneFlowOptions {
   // between (its feature has large scene flow, or it has moved away: the depth image sees
   // through where it should be) is culled from the map.
   int cull_after = 5;
-  // ... and a landmark in view that the depth image sees through (a surface behind it, nothing in
-  // front) counts as judged moving: the trace of a thing that moved away. Off by default: on
-  // static scenery the test fires on 2-4 % of the landmarks in view every frame (depth edges,
-  // thin things, the sensor's own misses) and on 4-15 % under fast hand-held rotation, and after
-  // a frame tracked a few pixels off it struck hundreds at once: culling them took a third of
-  // the map on real fr1_rpy frames and doubled the worst runs' error. A landmark left where a
-  // thing was is simply not matched again.
-  bool cull_seen_through = false;
+  // ... and a landmark in view that the depth image sees through (a surface behind it, nothing
+  // in front) counts as judged moving: the trace of a thing that moved away. Only in frames where
+  // at most this share of the landmarks in view is seen through: after a frame tracked a few
+  // pixels off (fast hand-held rotation, blur) a fifth of the view is, and striking them all
+  // culled a third of the map on real fr1_rpy frames; where a parked thing leaves, its own
+  // landmarks are a small share. 0: seeing through is no strike.
+  double seen_through_max_share = 0.1;
   // px: depth window around a feature, its correspondence and a landmark's projection. Corners
   // often sit on depth edges, where one pixel off reads the other surface: a feature only counts
   // as moving when no depth of its windows (nearest, nearest surface, farthest surface) explains
@@ -128,7 +127,7 @@ struct SceneFlowOptions {
     visit("max_round_trip_px", o.max_round_trip_px);
     visit("skip_round_trip_px", o.skip_round_trip_px);
     visit("cull_after", o.cull_after);
-    visit("cull_seen_through", o.cull_seen_through);
+    visit("seen_through_max_share", o.seen_through_max_share);
     visit("depth_window_radius", o.depth_window_radius);
     visit("max_segment_area", o.max_segment_area);
     visit("static_motion", o.static_motion);

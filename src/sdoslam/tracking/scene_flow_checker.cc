@@ -436,9 +436,11 @@ void SceneFlowChecker::CheckLandmarks(const Frame& frame, const ConsistencyInput
   // The other local landmarks in view: where the depth image sees through the landmark (a
   // surface behind it, nothing in front) it has moved away. (Lying on a region the front end
   // calls dynamic is no evidence: those regions reach over the background around people.)
-  if (!o.cull_seen_through) return;
+  if (!(o.seen_through_max_share > 0)) return;
   const int r = o.depth_window_radius;
   const int width = camera.width(), height = camera.height();
+  std::vector<MapPoint*> seen_through;
+  int in_view = 0;
   for (MapPoint* p : local_points) {
     if (p->bad || handled.count(p) != 0 || p->observations.empty()) continue;
     const Eigen::Vector3d X = frame.T_camera_world * p->position;
@@ -447,6 +449,7 @@ void SceneFlowChecker::CheckLandmarks(const Frame& frame, const ConsistencyInput
     if (camera.HasDistortion()) uv = camera.Distort(uv);
     const int u = static_cast<int>(std::lround(uv.x())), v = static_cast<int>(std::lround(uv.y()));
     if (u < r || v < r || u >= width - r || v >= height - r) continue;
+    ++in_view;
     const double tolerance = AlongRayLimit(o, X.z());
     int valid = 0, behind = 0;
     for (int y = v - r; y <= v + r; ++y) {
@@ -459,9 +462,12 @@ void SceneFlowChecker::CheckLandmarks(const Frame& frame, const ConsistencyInput
       }
     }
     const int window = (2 * r + 1) * (2 * r + 1);
-    const bool seen_through = 2 * valid >= window && behind == valid;
-    if (seen_through) strike(p);
+    if (2 * valid >= window && behind == valid) seen_through.push_back(p);
   }
+  // Where much of the view is seen through at once, the frame's pose is off (a blurred frame of
+  // a fast turn), not the room gone: no strikes.
+  if (seen_through.size() > o.seen_through_max_share * in_view) return;
+  for (MapPoint* p : seen_through) strike(p);
 }
 
 }  // namespace sdoslam

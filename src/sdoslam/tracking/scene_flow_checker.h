@@ -52,8 +52,9 @@ class SceneFlowChecker {
   // Map hygiene after CheckSceneFlow: counts the inconsistency of landmarks (MapPoint::
   // inconsistent) and culls those judged inconsistent cull_after times in a row
   // (result->culled_points). Landmarks `judged_dynamic` are inconsistent; those matched as
-  // inliers are consistent; with cull_seen_through, of the other `local_points` in view, those
-  // the depth image sees through (a surface behind them, nothing in front) are inconsistent.
+  // inliers are consistent; of the other `local_points` in view, those the depth image sees
+  // through (a surface behind them, nothing in front) are inconsistent, unless more than
+  // seen_through_max_share of them are.
   void CheckLandmarks(const Frame& frame, const ConsistencyInput& input,
                       const std::vector<MapPoint*>& judged_dynamic,
                       const std::vector<MapPoint*>& local_points, TrackingResult* result);

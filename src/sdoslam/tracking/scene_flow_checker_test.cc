@@ -266,7 +266,7 @@ TEST_F(SceneFlowCheckerTest, CheckLandmarksCullsTheMovedAndTheSeenThroughAndClea
   Render(0.4);
   SceneFlowOptions options;
   options.cull_after = 2;
-  options.cull_seen_through = true;
+  options.seen_through_max_share = 1;  // a handful of landmarks here: any share counts
   SceneFlowChecker checker(&map_, options);
   RememberPast(&checker);
   Frame frame = MatchedFrame();
@@ -333,13 +333,20 @@ TEST_F(SceneFlowCheckerTest, CheckLandmarksCullsTheMovedAndTheSeenThroughAndClea
   EXPECT_FALSE(on->bad);
   EXPECT_EQ(again.culled_points, 1);
 
-  // With the default options, seeing through a landmark is no strike against it.
-  SceneFlowChecker by_default(&map_, SceneFlowOptions{});
-  MapPoint* seen_through = landmark(0.5 * z, 3);
+  // Where more than seen_through_max_share of the landmarks in view are seen through (the pose
+  // is off), none is struck.
+  SceneFlowOptions strict = options;
+  strict.seen_through_max_share = 0.5;
+  SceneFlowChecker suspicious(&map_, strict);
+  MapPoint* first = landmark(0.5 * z, 3);
+  MapPoint* second = landmark(0.5 * z, 4);
   TrackingResult quiet;
-  by_default.CheckLandmarks(frame, input, {}, {seen_through}, &quiet);
-  EXPECT_EQ(seen_through->inconsistent, 0);
-  EXPECT_EQ(quiet.culled_points, 0);
+  suspicious.CheckLandmarks(frame, input, {}, {first, second, on}, &quiet);
+  EXPECT_EQ(first->inconsistent, 0);
+  EXPECT_EQ(second->inconsistent, 0);
+  // One of three is within the share: struck.
+  suspicious.CheckLandmarks(frame, input, {}, {first, on, behind}, &quiet);
+  EXPECT_EQ(first->inconsistent, 1);
 }
 
 }  // namespace
