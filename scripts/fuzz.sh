@@ -18,8 +18,9 @@ targets=("${1:-${all[@]}}")
 
 # -O1 and line tables only (CMakeLists.txt), as libFuzzer's documentation builds: the readers
 # are small, and CI builds the libraries they live in a second time here (131 -> 108 s on 2 cores).
+# A unity build, as scripts/build.sh: 93 -> 82 s, and 136 -> 86 s of CPU.
 CC=clang CXX=clang++ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-  -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -DNDEBUG" -DSDOSLAM_FUZZ=ON >/dev/null
+  -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -DNDEBUG" -DSDOSLAM_FUZZ=ON -DCMAKE_UNITY_BUILD=ON >/dev/null
 cmake --build build-fuzz -j "$(nproc 2>/dev/null || echo 2)" \
   --target $(printf '%s_fuzz ' "${targets[@]}")
 mkdir -p build-fuzz/findings
