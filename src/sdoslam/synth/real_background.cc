@@ -157,6 +157,45 @@ SceneObject PersonFillingTheView(const Placement& p) {
                  p.T_world_anchor);
 }
 
+// `object` holding still from scene time `from` for `seconds`, then going on where it stopped.
+SceneObject Paused(SceneObject object, double from, double seconds) {
+  auto clock = [from, seconds](double t) {
+    return t < from ? t : (t < from + seconds ? from : t - seconds);
+  };
+  auto parts_at = object.parts_at;
+  auto pose_at = object.pose_at;
+  object.parts_at = [=](double t) { return parts_at(clock(t)); };
+  object.pose_at = [=](double t) { return pose_at(clock(t)); };
+  return object;
+}
+
+// A person walks straight at the camera from 2.2 m to 0.75 m, stands there facing it for 1 s
+// (about half the image covered, the head cut off by the top edge), then walks on, turns and
+// goes back: a known class that stops moving at close range, where a full-body detector no
+// longer sees it.
+SceneObject PersonStoppingClose(const Placement& p) {
+  constexpr double kFar = 2.2, kStop = 0.75, kNearest = 0.65;  // metres ahead of the camera
+  const double stop_time = 0.37 * p.duration, stand = std::min(1.0, 0.3 * p.duration);
+  // Where the camera looks while the person stands (anchor frame: x right, y forward, z up).
+  const Isometry3d T_anchor_camera = p.T_world_anchor.inverse() * p.camera_at(stop_time);
+  const Vector3d centre = T_anchor_camera.translation();
+  Vector3d forward = T_anchor_camera.linear().col(2);
+  forward.z() = 0;
+  forward.normalize();
+  // Feet 1.2 m below the camera (a robot's or a low hand-held camera): from 0.75 m the head is
+  // above the view.
+  const Vector3d feet = centre - Vector3d(0, 0, 1.2);
+  // Person() walks a shuttle (1 − cos): it reaches kStop at a share `f` of its way from kFar to
+  // kNearest, after acos(1 − 2f) / 2π of its period; the period puts that at stop_time.
+  const double f = (kFar - kStop) / (kFar - kNearest);
+  const double period = stop_time * 2 * M_PI / std::acos(1 - 2 * f);
+  return Paused(
+      InWorld(Person(4, "person_stopping", feet + kFar * forward, feet + kNearest * forward, period,
+                     0.0, {0.55f, 0.3f, 0.25f}, {0.2f, 0.2f, 0.35f}),
+              p.T_world_anchor),
+      stop_time, stand);
+}
+
 void CheckScenarioName(const std::string& name) {
   const auto names = BackgroundScenarioNames();
   if (std::find(names.begin(), names.end(), name) != names.end()) return;
@@ -180,6 +219,8 @@ Scene MakeBackgroundScene(const std::string& name, const Placement& p) {
     scene.objects = {People(p, 1)[0], SwingingBoxes(p)[0], CarriedBox(p)};
   } else if (name == "person_fills_view") {
     scene.objects = {PersonFillingTheView(p)};
+  } else if (name == "person_stops_close") {
+    scene.objects = {PersonStoppingClose(p)};
   } else {
     CheckScenarioName(name);  // throws, listing the known names
   }
@@ -189,7 +230,8 @@ Scene MakeBackgroundScene(const std::string& name, const Placement& p) {
 }  // namespace
 
 std::vector<std::string> BackgroundScenarioNames() {
-  return {"static", "carried_box", "swinging_boxes", "people", "mixed", "person_fills_view"};
+  return {"static", "carried_box",       "swinging_boxes",    "people",
+          "mixed",  "person_fills_view", "person_stops_close"};
 }
 
 void BackgroundSynthOptions::Check() const {

@@ -36,7 +36,9 @@ struct BackgroundSynthOptions {
 //   image), moving with it; swinging_boxes: two boxes swinging across the view (unknown class);
 // people: two people walking across the view (class person); mixed: the carried box, a swinging
 // box and a walking person; person_fills_view: a person walks up to the camera, fills the whole
-// view for about half a second (0.6 of the way through), turns and walks away.
+// view for about half a second (0.6 of the way through), turns and walks away;
+// person_stops_close: a person walks up from 2.2 m, stands 0.75 m ahead for a second (about half
+// the image, head cut off), then walks back.
 std::vector<std::string> BackgroundScenarioNames();
 
 // Writes the sequence to `out` in the layout of WriteSequence, with the recording's camera in

@@ -128,5 +128,47 @@ TEST_F(RealBackgroundTest, PeopleAreDetectedAsPersonsAndUnknownScenariosAreError
   EXPECT_FALSE(std::filesystem::exists(dir_ / "y"));
 }
 
+// person_stops_close over the desk clip played forward only (50 frames, 1.7 s): the person
+// walks up, stands still about 0.75 m ahead of the camera for 0.3 of the play (a second in the
+// 3.3 s plays), its head above the view and about half the image covered, then walks on.
+TEST_F(RealBackgroundTest, APersonWalksUpStandsStillCloseByThenWalksOn) {
+  const auto out = dir_ / "stops";
+  BackgroundSynthOptions options = DeskOptions("person_stops_close", 0);
+  options.forward_backward = false;
+  const SequenceSummary summary = WriteBackgroundSequence(options, out);
+  ASSERT_EQ(summary.frames, 50);
+  const Trajectory gt = ReadTumTrajectory(out / "groundtruth.txt");
+  std::istringstream lines(testing::ReadText(out / "object_poses.txt"));
+  std::string line;
+  std::getline(lines, line);  // header
+  std::vector<Eigen::Vector3d> feet;
+  double stamp, id, x, y, z, qx, qy, qz, qw;
+  while (lines >> stamp >> id >> x >> y >> z >> qx >> qy >> qz >> qw) feet.emplace_back(x, y, z);
+  ASSERT_EQ(feet.size(), 50u);
+  // The stand: the longest run of frames at one pose.
+  size_t first = 0, length = 1;
+  for (size_t k = 1, start = 0; k < feet.size(); ++k) {
+    if ((feet[k] - feet[k - 1]).norm() > 1e-9) start = k;
+    if (k - start + 1 > length) first = start, length = k - start + 1;
+  }
+  EXPECT_GE(length, 13u);  // 0.3 × 1.7 s at 30 Hz, give or take the recording's frame times
+  EXPECT_LE(length, 17u);
+  EXPECT_GT((feet[first] - feet[0]).norm(), 1.2);      // walked up from 2.2 m ...
+  EXPECT_GT((feet.back() - feet[first]).norm(), 0.5);  // ... and walks on after the stand
+  // Feet 0.75 m ahead and 1.2 m below the camera: √(0.75² + 1.2²) = 1.42 m from it.
+  EXPECT_NEAR((feet[first] - gt[first].T_world_camera.translation()).norm(), 1.42, 0.08);
+
+  const TumDataset written(out, LoadCameraConfig(out / "camera.yaml"));
+  const size_t middle = first + length / 2;
+  const cv::Mat instance =
+      cv::imread((out / "instance" / written.entries()[middle].rgb_path.filename()).string(),
+                 cv::IMREAD_UNCHANGED);
+  ASSERT_FALSE(instance.empty());
+  const cv::Mat person = instance == 4;
+  EXPECT_GT(cv::countNonZero(person), 0.4 * instance.total());
+  EXPECT_LT(cv::countNonZero(person), 0.8 * instance.total());
+  EXPECT_GT(cv::countNonZero(person.row(0)), 50);  // cut off by the top edge
+}
+
 }  // namespace
 }  // namespace sdoslam::synth
