@@ -217,7 +217,8 @@ void RunDemo(const DemoArgs& args) {
     const synth::SequenceSummary rendered =
         synth::WriteSequence(synth_options, sequence, /*overwrite=*/true);
     std::cout << fmt::format(
-        "{}: rendered {} frames in {:.1f} s; moving objects cover {:.0f} % of the image\n",
+        "{}: rendered {} frames in {:.1f} s; people and moving objects cover {:.0f} % of the "
+        "image\n",
         scenario, rendered.frames, rendered.total_seconds, 100.0 * rendered.dynamic_fraction_mean);
     std::vector<RunMode> modes = {RunMode::kConventional};
     if (std::string(scenario) != "static_room")

@@ -65,7 +65,7 @@ void RunBackgroundSynth(const SynthArgs& args) {
       synth::WriteBackgroundSequence(options, args.out, args.overwrite);
   std::cout << fmt::format(
       "wrote {} frames of '{}' over {}{} to {} in {:.1f} s ({:.1f} ms/frame rendering)\n"
-      "moving objects cover {:.0f} % of the image on average, {:.0f} % at most\n",
+      "people and moving objects cover {:.0f} % of the image on average, {:.0f} % at most\n",
       s.frames, args.scenario, args.background,
       args.forward_backward ? " (forward, then backward)" : "", args.out, s.total_seconds,
       1000.0 * s.render_seconds / s.frames, 100.0 * s.dynamic_fraction_mean,
@@ -143,7 +143,7 @@ void RunSynth(const SynthArgs& args) {
   }
   std::cout << fmt::format(
       "wrote {} frames of '{}' to {} in {:.1f} s ({:.1f} ms/frame rendering)\n"
-      "moving objects cover {:.0f} % of the image on average, {:.0f} % at most\n",
+      "people and moving objects cover {:.0f} % of the image on average, {:.0f} % at most\n",
       s.frames, args.scenario, args.out, s.total_seconds, 1000.0 * s.render_seconds / s.frames,
       100.0 * s.dynamic_fraction_mean, 100.0 * s.dynamic_fraction_max);
 }

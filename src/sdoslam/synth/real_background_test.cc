@@ -168,6 +168,13 @@ TEST_F(RealBackgroundTest, APersonWalksUpStandsStillCloseByThenWalksOn) {
   EXPECT_GT(cv::countNonZero(person), 0.4 * instance.total());
   EXPECT_LT(cv::countNonZero(person), 0.8 * instance.total());
   EXPECT_GT(cv::countNonZero(person.row(0)), 50);  // cut off by the top edge
+  // A person is dynamic whether it moves or not: the ground truth marks it while it stands.
+  const cv::Mat dynamic =
+      cv::imread((out / "dynamic" / written.entries()[middle].rgb_path.filename()).string(),
+                 cv::IMREAD_UNCHANGED);
+  ASSERT_FALSE(dynamic.empty());
+  EXPECT_EQ(cv::countNonZero(person & (dynamic == 255)), cv::countNonZero(person));
+  EXPECT_EQ(cv::countNonZero(dynamic), cv::countNonZero(person));
 }
 
 }  // namespace

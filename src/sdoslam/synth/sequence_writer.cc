@@ -60,8 +60,12 @@ void SequenceWriter::AddFrame(double stamp_value, double t, double dt, const Sen
   nlohmann::json frame_detections = nlohmann::json::array();
   for (const SceneObject& object : scene.objects) {
     const cv::Mat mask = instance == object.id;
-    const bool moving = object.MovesBetween(t - dt, t) || object.MovesBetween(t, t + dt);
-    if (moving) dynamic.setTo(255, mask);
+    // A thing of a known movable class (a person) is dynamic whether it moves or not, as the
+    // paper's known classes are: one standing still now may walk off with the points mapped on
+    // it. Things of no class are dynamic while they move.
+    const bool dynamic_now = !object.class_name.empty() || object.MovesBetween(t - dt, t) ||
+                             object.MovesBetween(t, t + dt);
+    if (dynamic_now) dynamic.setTo(255, mask);
     object_poses_ += stamp + " " + std::to_string(object.id) + PoseFields(object.pose_at(t)) + "\n";
     const int pixels = cv::countNonZero(mask);
     if (!object.class_name.empty() && pixels >= 100) {
