@@ -42,6 +42,9 @@ void SdoClassifierOptions::Check(const std::string& path) const {
   fraction(persistence_overlap, "persistence_overlap");
   fraction(persistence_large_overlap, "persistence_large_overlap");
   fraction(persistence_min_in_front, "persistence_min_in_front");
+  fraction(unmapped_min_outline_on_boundary, "unmapped_min_outline_on_boundary");
+  if (unmapped_frames < 0 || unmapped_frames > 250)
+    throw Error(path + "unmapped_frames must be in [0, 250]");
   if (persistence_min_ordered < 0) throw Error(path + "persistence_min_ordered must be ≥ 0");
   if (same_depth_tolerance < 0) throw Error(path + "same_depth_tolerance must be ≥ 0");
   if (same_depth_min_m < 0) throw Error(path + "same_depth_min_m must be ≥ 0");
@@ -280,6 +283,14 @@ SdoResult SdoClassifier::Classify(const Segmentation& segments,
   }
   PaintLabels(seg, known, moving, &memory, &result);
   memory_ = memory;
+  // Seen moving: selected by motion on clear boundaries (unmapped_min_outline_on_boundary).
+  std::vector<uint8_t> seen_moving(stats.size(), 0);
+  for (size_t s = 0; s < stats.size(); ++s) {
+    seen_moving[s] =
+        (moving[s] & 1) && stats[s].outline_on_boundary >=
+                               options_.unmapped_min_outline_on_boundary * stats[s].outline;
+  }
+  const cv::Mat recently_moving = RecentlyMoving(seg, known, seen_moving, flow);
   if (options_.margin_px > 0) {
     // Grow dynamic regions (max filter: known-movable wins over moving-unknown only by value
     // order, which is fine: both are dynamic).
@@ -290,7 +301,33 @@ SdoResult SdoClassifier::Classify(const Segmentation& segments,
     result.work_labels = grown;
   }
   cv::resize(result.work_labels, result.labels, image_size, 0, 0, cv::INTER_NEAREST);
+  if (!recently_moving.empty()) {
+    const cv::Mat unmapped = (recently_moving > 0) & (result.work_labels == kStatic);
+    cv::resize(unmapped, result.unmapped, image_size, 0, 0, cv::INTER_NEAREST);
+  }
   return result;
+}
+
+cv::Mat SdoClassifier::RecentlyMoving(const cv::Mat& seg, const cv::Mat& known,
+                                      const std::vector<uint8_t>& seen_moving,
+                                      const cv::Mat& flow) {
+  if (options_.unmapped_frames == 0) return {};
+  cv::Mat recent(seg.size(), CV_8U, cv::Scalar(0));
+  if (!recently_moving_.empty() && recently_moving_.size() == seg.size()) {
+    recent = CarryAlongFlow(recently_moving_, flow);
+    cv::subtract(recent, cv::Scalar(1), recent);  // saturates at 0
+  }
+  const uint8_t refresh = static_cast<uint8_t>(options_.unmapped_frames);
+  for (int y = 0; y < seg.rows; ++y) {
+    const int* row = seg.ptr<int>(y);
+    const uint8_t* k = known.ptr<uint8_t>(y);
+    uint8_t* r = recent.ptr<uint8_t>(y);
+    for (int x = 0; x < seg.cols; ++x) {
+      if (k[x] || (row[x] >= 0 && seen_moving[static_cast<size_t>(row[x])])) r[x] = refresh;
+    }
+  }
+  recently_moving_ = recent;
+  return recent;
 }
 
 void SdoClassifier::PaintLabels(const cv::Mat& seg, const cv::Mat& known,

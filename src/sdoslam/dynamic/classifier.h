@@ -68,6 +68,17 @@ struct SdoClassifierOptions {
   // and dropping it from the dynamic set let tracking follow it (person_fills_view). A
   // background segment is never that much covered by a mover a frame before.
   double persistence_large_overlap = 0.8;
+  // Where a thing was seen moving, or a known movable class was detected, within the last
+  // `unmapped_frames` frames, features that are now static make no map points (SdoResult::
+  // unmapped): a person who stops, stands and walks on again is still while it stands, the check
+  // sees nothing move, and the points mapped on it then pulled the pose when it left (play
+  // person_stops_close: 39.7 -> 13.9 mm over seeds 1-3, oracle 13.8; docs/results.md). Tracking
+  // still uses them. Only segments with at least `unmapped_min_outline_on_boundary` of their
+  // outline on motion boundaries count as seen moving: weaker selections are mostly the noise of
+  // blurred frames, and keeping those unmapped for two seconds cost static real footage
+  // (fr1_rpy) 1-2 mm. 0 frames: off.
+  int unmapped_frames = 60;
+  double unmapped_min_outline_on_boundary = 0.5;
 
   int margin_px = 1;  // work pixels by which dynamic regions grow (features on silhouettes)
   void Check(const std::string& path = "dynamic.classifier.") const;  // Error names path + setting
@@ -90,6 +101,8 @@ struct SdoClassifierOptions {
     visit("persistence_large_overlap", o.persistence_large_overlap);
     visit("persistence_min_in_front", o.persistence_min_in_front);
     visit("persistence_min_ordered", o.persistence_min_ordered);
+    visit("unmapped_frames", o.unmapped_frames);
+    visit("unmapped_min_outline_on_boundary", o.unmapped_min_outline_on_boundary);
     visit("margin_px", o.margin_px);
   }
 };
@@ -101,6 +114,9 @@ struct SdoResult {
   std::vector<uint8_t> segment_labels;  // DynamicLabel per segment
   std::vector<Detection> detections;    // image pixels
   cv::Mat boundary_mask;                // CV_8U at work resolution, 255 = motion boundary
+  // CV_8U at image size, 255 where a static feature makes no map point (seen moving within
+  // unmapped_frames); empty when unmapped_frames is 0.
+  cv::Mat unmapped;
 };
 
 class SdoClassifier {
@@ -114,7 +130,10 @@ class SdoClassifier {
                      const cv::Mat& boundary_mask, const cv::Mat& flow, const cv::Mat& depth,
                      cv::Size image_size);
 
-  void Reset() { memory_.release(); }
+  void Reset() {
+    memory_.release();
+    recently_moving_.release();
+  }
 
  private:
   // Classify's label image at the segments' resolution (result->work_labels): known movable
@@ -122,8 +141,15 @@ class SdoClassifier {
   // freshly selected by motion (`moving` & 1) refresh `memory` to persistence_frames.
   void PaintLabels(const cv::Mat& seg, const cv::Mat& known, const std::vector<uint8_t>& moving,
                    cv::Mat* memory, SdoResult* result) const;
+  // The regions seen moving within unmapped_frames (recently_moving_ carried along `flow` to
+  // this frame and counted down), refreshed on the `known` pixels and the `seen_moving`
+  // segments of `seg`; empty when unmapped_frames is 0.
+  cv::Mat RecentlyMoving(const cv::Mat& seg, const cv::Mat& known,
+                         const std::vector<uint8_t>& seen_moving, const cv::Mat& flow);
   SdoClassifierOptions options_;
   cv::Mat memory_;  // CV_8U at work resolution: frames left for which a moved region persists
+  // CV_8U at work resolution: frames left for which a region seen moving stays unmapped.
+  cv::Mat recently_moving_;
 };
 
 }  // namespace sdoslam

@@ -172,6 +172,50 @@ TEST(SdoClassifier, SelectedObjectPersistsForTheConfiguredFramesThenLapses) {
                                         kStatic}));
 }
 
+// B seen moving on clear boundaries (all of its outline) in one frame, then still: labelled
+// dynamic while the memory lasts (3 frames), then static but still unmapped until 6 frames after
+// it was seen moving. A selection on weaker boundaries (39 % of the outline: above
+// min_outline_on_boundary, below unmapped_min_outline_on_boundary) leaves nothing unmapped.
+TEST(SdoClassifier, AThingSeenMovingStaysUnmappedAfterItsLabelLapses) {
+  Scene s;
+  SdoClassifierOptions o = ExactOptions();
+  o.persistence_frames = 3;
+  o.unmapped_frames = 6;
+  const cv::Mat zero_flow(120, 160, CV_32FC2, cv::Scalar(0, 0));
+  const cv::Mat no_boundary(120, 160, CV_8U, cv::Scalar(0));
+  cv::Mat weak_boundary(120, 160, CV_8U, cv::Scalar(0));
+  cv::line(weak_boundary, s.b.tl(), {s.b.x, s.b.br().y - 1}, cv::Scalar(255));  // left side
+  cv::line(weak_boundary, s.b.tl(), {s.b.x + 17, s.b.y}, cv::Scalar(255));      // half the top
+  auto unmapped_on_b = [&](const SdoResult& r) {
+    return r.unmapped.empty() ? -1 : cv::countNonZero(r.unmapped(s.b));
+  };
+  for (const bool clear : {true, false}) {
+    SCOPED_TRACE(clear ? "clear boundaries" : "weak boundaries");
+    SdoClassifier classifier(o);
+    const SdoResult first = classifier.Classify(
+        s.segments, {}, clear ? s.OutlineOf(s.b) : weak_boundary, zero_flow, s.depth, {160, 120});
+    ASSERT_EQ(first.segment_labels[2], kMovingUnknown);
+    EXPECT_EQ(unmapped_on_b(first), 0);  // dynamic now: nothing static to keep unmapped
+    EXPECT_EQ(cv::countNonZero(first.unmapped), 0);
+    std::vector<int> unmapped, dynamic;
+    for (int k = 0; k < 6; ++k) {
+      const SdoResult r =
+          classifier.Classify(s.segments, {}, no_boundary, zero_flow, s.depth, {160, 120});
+      unmapped.push_back(unmapped_on_b(r));
+      dynamic.push_back(r.segment_labels[2] != kStatic);
+      EXPECT_EQ(cv::countNonZero(r.unmapped), unmapped.back());  // only B, never the wall or A
+    }
+    EXPECT_EQ(dynamic, (std::vector<int>{1, 1, 1, 0, 0, 0}));
+    const int b = s.b.area();
+    EXPECT_EQ(unmapped,
+              clear ? (std::vector<int>{0, 0, 0, b, b, 0}) : (std::vector<int>{0, 0, 0, 0, 0, 0}));
+  }
+  o.unmapped_frames = 0;
+  EXPECT_TRUE(SdoClassifier(o)
+                  .Classify(s.segments, {}, s.OutlineOf(s.b), zero_flow, s.depth, {160, 120})
+                  .unmapped.empty());
+}
+
 // A mover that filled B walked on; the room seen there now is farther than the wall around it
 // (B's pixels read 3.5 m inside a wall at 3 m). The memory still covers B, but B lies behind
 // everything it borders, so it is not remembered; an object that paused (still 1.5 m) is.
@@ -243,6 +287,12 @@ TEST(SdoClassifierOptions, RejectsOutOfRangeValues) {
   EXPECT_THROW(o.Check(), Error);
   o = {};
   o.same_depth_min_m = -0.1;
+  EXPECT_THROW(o.Check(), Error);
+  o = {};
+  o.unmapped_frames = 251;
+  EXPECT_THROW(o.Check(), Error);
+  o = {};
+  o.unmapped_min_outline_on_boundary = -0.1;
   EXPECT_THROW(o.Check(), Error);
 }
 

@@ -90,6 +90,18 @@ void Frame::SetLabels(const cv::Mat& label_image) {
   }
 }
 
+void Frame::SetUnmappable(const cv::Mat& mask) {
+  unmappable_.clear();
+  if (mask.empty()) return;
+  CV_Assert(mask.type() == CV_8UC1);
+  unmappable_.assign(size(), 0);
+  for (size_t i = 0; i < size(); ++i) {
+    const int u = std::clamp(static_cast<int>(std::lround(keypoints[i].pt.x)), 0, mask.cols - 1);
+    const int v = std::clamp(static_cast<int>(std::lround(keypoints[i].pt.y)), 0, mask.rows - 1);
+    unmappable_[i] = mask.at<uint8_t>(v, u) != 0;
+  }
+}
+
 void Frame::MarkDynamic(int i, uint8_t dynamic_label) {
   CV_Assert(dynamic_label != 0);
   const size_t k = static_cast<size_t>(i);
@@ -184,6 +196,7 @@ void Frame::ReleaseFeatures() {
   std::vector<MapPoint*>().swap(map_points);
   std::vector<bool>().swap(outlier);
   std::vector<uint8_t>().swap(label);
+  std::vector<uint8_t>().swap(unmappable_);
   std::vector<cv::Vec3b>().swap(colors);
   std::vector<int>().swap(grid_start_);  // FeaturesInArea finds nothing in a released frame
   std::vector<int>().swap(grid_features_);

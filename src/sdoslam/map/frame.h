@@ -62,6 +62,15 @@ class Frame {
   // Gives feature i a dynamic label after tracking has started on the frame (the consistency
   // check): drops its map point, and FeaturesInArea leaves it out.
   void MarkDynamic(int i, uint8_t dynamic_label);
+  // Marks the features on `mask` (CV_8U, image size, non-zero: seen moving lately, see
+  // SdoClassifierOptions::unmapped_frames) as making no map points; tracking still matches them
+  // to the map. An empty mask clears the marks.
+  void SetUnmappable(const cv::Mat& mask);
+  // Whether feature i may make a map point (keyframe points from depth, triangulation, the
+  // tracker's temporary points).
+  bool Mappable(int i) const {
+    return unmappable_.empty() || unmappable_[static_cast<size_t>(i)] == 0;
+  }
   // Keypoint i back-projected with its depth, in world coordinates at the frame's pose.
   Eigen::Vector3d UnprojectWorld(int i) const;
   PointObservation Observation(int i) const;
@@ -92,6 +101,7 @@ class Frame {
   // Features per grid cell: those of cell c are grid_features_[grid_start_[c] ..
   // grid_start_[c + 1]).
   std::vector<int> grid_start_, grid_features_;
+  std::vector<uint8_t> unmappable_;  // per feature, 1: makes no map point; empty: none marked
 };
 
 }  // namespace sdoslam

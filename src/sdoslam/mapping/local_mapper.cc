@@ -219,13 +219,17 @@ int LocalMapper::TriangulateNewPoints(KeyFrame* kf) {
     std::vector<int> free_other;
     for (size_t j = 0; j < other->frame.size(); ++j) {
       const MapPoint* p = other->frame.map_points[j];
-      if ((p == nullptr || p->bad) && other->frame.IsStatic(static_cast<int>(j)))
+      const int feature = static_cast<int>(j);
+      if ((p == nullptr || p->bad) && other->frame.IsStatic(feature) &&
+          other->frame.Mappable(feature))
         free_other.push_back(static_cast<int>(j));
     }
     std::vector<bool> used(other->frame.size(), false);
     for (size_t i = 0; i < kf->frame.size(); ++i) {
       const MapPoint* existing = kf->frame.map_points[i];
-      if ((existing != nullptr && !existing->bad) || !kf->frame.IsStatic(static_cast<int>(i)))
+      const int feature = static_cast<int>(i);
+      if ((existing != nullptr && !existing->bad) || !kf->frame.IsStatic(feature) ||
+          !kf->frame.Mappable(feature))
         continue;
       const Eigen::Vector3d x1(kf->frame.undistorted[i].x, kf->frame.undistorted[i].y, 1.0);
       const BestTwo nearest =

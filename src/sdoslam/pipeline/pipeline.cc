@@ -101,7 +101,8 @@ StagedFrame Pipeline::Prepare(RgbdFrame input, const cv::Mat& dynamic_mask) {
   } else {
     extract();
   }
-  slam_->AddDynamicInputs(&*features, staged.labels, segments, staged.locked_segments);
+  slam_->AddDynamicInputs(&*features, staged.labels, segments, staged.locked_segments,
+                          staged.sdo ? staged.sdo->unmapped : cv::Mat());
   staged.slam.emplace(std::move(*features));
   staged.input = std::move(input);
   staged.prepared = std::chrono::steady_clock::now();

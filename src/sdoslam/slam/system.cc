@@ -175,8 +175,8 @@ PreparedFrame System::ExtractFeatures(size_t index, double timestamp, const cv::
 }
 
 void System::AddDynamicInputs(PreparedFrame* prepared, const cv::Mat& dynamic_labels,
-                              const cv::Mat& segments,
-                              const std::vector<uint8_t>& locked_segments) const {
+                              const cv::Mat& segments, const std::vector<uint8_t>& locked_segments,
+                              const cv::Mat& unmapped) const {
   const size_t index = prepared->frame.index;
   const cv::Size size = prepared->gray.size();
   const auto start = std::chrono::steady_clock::now();
@@ -190,7 +190,12 @@ void System::AddDynamicInputs(PreparedFrame* prepared, const cv::Mat& dynamic_la
     throw Error("frame " + std::to_string(index) +
                 ": the segment image is not 32-bit single-channel of at most the frame's size");
   }
+  if (!unmapped.empty() && (unmapped.size() != size || unmapped.type() != CV_8UC1)) {
+    throw Error("frame " + std::to_string(index) +
+                ": the unmapped mask is not 8-bit single-channel of the frame's size");
+  }
   if (!dynamic_labels.empty()) prepared->frame.SetLabels(dynamic_labels);
+  prepared->frame.SetUnmappable(unmapped);
   if (!segments.empty()) {
     prepared->consistency.emplace();
     prepared->consistency->gray = prepared->gray;

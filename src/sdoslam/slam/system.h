@@ -143,8 +143,11 @@ class System {
   // too shares it); made here otherwise.
   PreparedFrame ExtractFeatures(size_t index, double timestamp, const cv::Mat& bgr,
                                 const cv::Mat& depth, const cv::Mat& gray = cv::Mat()) const;
+  // `unmapped` (CV_8U, image size, or empty): features that make no map point (Frame::
+  // SetUnmappable; the front end's SdoResult::unmapped).
   void AddDynamicInputs(PreparedFrame* prepared, const cv::Mat& dynamic_labels,
-                        const cv::Mat& segments, const std::vector<uint8_t>& locked_segments) const;
+                        const cv::Mat& segments, const std::vector<uint8_t>& locked_segments,
+                        const cv::Mat& unmapped = cv::Mat()) const;
   TrackingResult Track(PreparedFrame&& prepared, FrameTiming* timing = nullptr);
 
   // Every tracked frame (lost ones left out), with its pose relative to its reference keyframe

@@ -55,7 +55,8 @@ KeyFrame* CreateKeyFrame(Map* map, const TrackerOptions& options, Frame& frame) 
   // New close points from depth, nearest first; at least min_close_points of them.
   std::vector<std::pair<float, int>> by_depth;
   for (size_t i = 0; i < kf->frame.size(); ++i) {
-    if (kf->frame.IsStaticWithDepth(static_cast<int>(i)))
+    const int feature = static_cast<int>(i);
+    if (kf->frame.IsStaticWithDepth(feature) && kf->frame.Mappable(feature))
       by_depth.emplace_back(kf->frame.depth[i], static_cast<int>(i));
   }
   std::sort(by_depth.begin(), by_depth.end());

@@ -209,6 +209,32 @@ TEST_F(KeyFrameInserterTest, CreateKeyFrameMakesThePointsOfTheCloseStaticFeature
   EXPECT_EQ(map.points().size(), points_before + (close_.size() - 2) + 1);
 }
 
+// Features the front end keeps unmapped (seen moving lately) are static, but make no point.
+TEST_F(KeyFrameInserterTest, UnmappableFeaturesMakeNoPoints) {
+  Map map;
+  std::fill(frame_->map_points.begin(), frame_->map_points.end(), nullptr);
+  // The left half of the image is unmapped.
+  cv::Mat unmapped(frame_->geometry->camera.height(), frame_->geometry->camera.width(), CV_8U,
+                   cv::Scalar(0));
+  unmapped.colRange(0, unmapped.cols / 2).setTo(255);
+  frame_->SetUnmappable(unmapped);
+  size_t left = 0;
+  for (size_t i : close_) left += frame_->keypoints[i].pt.x < unmapped.cols / 2 - 1;
+  ASSERT_GT(left, 10u);
+  KeyFrame* kf = CreateKeyFrame(&map, options_, *frame_);
+  size_t left_points = 0, right_points = 0;
+  for (size_t i = 0; i < kf->frame.size(); ++i) {
+    if (kf->frame.map_points[i] == nullptr) continue;
+    (kf->frame.keypoints[i].pt.x < unmapped.cols / 2 - 1 ? left_points : right_points)++;
+    EXPECT_TRUE(kf->frame.IsStatic(static_cast<int>(i)));
+  }
+  EXPECT_EQ(left_points, 0u);
+  EXPECT_GT(right_points, 10u);
+  for (size_t i : close_) EXPECT_TRUE(frame_->IsStatic(static_cast<int>(i)));  // still tracked
+  frame_->SetUnmappable(cv::Mat());  // cleared: every feature may make a point again
+  for (size_t i = 0; i < frame_->size(); ++i) EXPECT_TRUE(frame_->Mappable(static_cast<int>(i)));
+}
+
 TEST_F(KeyFrameInserterTest, FarFeaturesMakeUpMinClosePoints) {
   Map map;
   std::fill(frame_->map_points.begin(), frame_->map_points.end(), nullptr);

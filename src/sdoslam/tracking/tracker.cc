@@ -221,7 +221,8 @@ void Tracker::MakeTemporaryPoints() {
   Frame& last = *last_frame_;
   std::vector<std::pair<float, int>> by_depth;
   for (size_t i = 0; i < last.size(); ++i) {
-    if (last.IsStaticWithDepth(static_cast<int>(i)))
+    const int feature = static_cast<int>(i);
+    if (last.IsStaticWithDepth(feature) && last.Mappable(feature))
       by_depth.emplace_back(last.depth[i], static_cast<int>(i));
   }
   std::sort(by_depth.begin(), by_depth.end());
