@@ -180,23 +180,30 @@ std::vector<uint8_t> SelectedByMotion(const std::vector<SegmentStats>& stats, in
   return moving;
 }
 
-// The persistence memory carried to this frame along `flow` (backward lookup, first order).
-cv::Mat CarryAlongFlow(const cv::Mat& memory, const cv::Mat& flow) {
-  if (flow.empty()) return memory.clone();
-  const cv::Size work = memory.size();
+// Where each pixel of a `work`-sized image was on the frame before, by `flow` (backward
+// lookup, first order): the map cv::remap takes. Empty without flow. Built once a frame for the
+// two memories the classifier carries (persistence, and the regions seen moving lately).
+cv::Mat BackwardMap(const cv::Mat& flow, cv::Size work) {
+  if (flow.empty()) return {};
   cv::Mat flow_work;
   cv::resize(flow, flow_work, work, 0, 0, cv::INTER_LINEAR);
   flow_work *= static_cast<double>(work.width) / flow.cols;
   cv::Mat map(work, CV_32FC2);
   for (int y = 0; y < work.height; ++y) {
-    for (int x = 0; x < work.width; ++x) {
-      const cv::Vec2f f = flow_work.at<cv::Vec2f>(y, x);
-      map.at<cv::Vec2f>(y, x) =
-          cv::Vec2f(static_cast<float>(x) - f[0], static_cast<float>(y) - f[1]);
-    }
+    const cv::Vec2f* f = flow_work.ptr<cv::Vec2f>(y);
+    cv::Vec2f* m = map.ptr<cv::Vec2f>(y);
+    for (int x = 0; x < work.width; ++x)
+      m[x] = cv::Vec2f(static_cast<float>(x) - f[x][0], static_cast<float>(y) - f[x][1]);
   }
-  cv::Mat carried(work, CV_8U, cv::Scalar(0));
-  cv::remap(memory, carried, map, cv::noArray(), cv::INTER_NEAREST, cv::BORDER_CONSTANT);
+  return map;
+}
+
+// A memory carried to this frame by `backward_map` (BackwardMap; empty: it stays in place).
+cv::Mat CarryAlongFlow(const cv::Mat& memory, const cv::Mat& backward_map) {
+  if (backward_map.empty()) return memory.clone();
+  cv::Mat carried(memory.size(), CV_8U, cv::Scalar(0));
+  cv::remap(memory, carried, backward_map, cv::noArray(), cv::INTER_NEAREST,
+            cv::BORDER_CONSTANT);
   return carried;
 }
 
@@ -271,9 +278,14 @@ SdoResult SdoClassifier::Classify(const Segmentation& segments,
   // Unknown objects: selected by motion boundaries, or remembered from the frames before.
   const int max_area = static_cast<int>(options_.max_segment_area * work.area());
   std::vector<uint8_t> moving = SelectedByMotion(stats, max_area, options_);
+  const bool carries_recent = options_.unmapped_frames > 0 && !recently_moving_.empty() &&
+                              recently_moving_.size() == work;
+  const bool carries_memory = !memory_.empty() && memory_.size() == work;
+  const cv::Mat backward_map =
+      carries_memory || carries_recent ? BackwardMap(flow, work) : cv::Mat();
   cv::Mat memory(work, CV_8U, cv::Scalar(0));
-  if (!memory_.empty() && memory_.size() == work) {
-    memory = CarryAlongFlow(memory_, flow);
+  if (carries_memory) {
+    memory = CarryAlongFlow(memory_, backward_map);
     MarkRemembered(memory, seg, stats, max_area, options_, &moving);
     cv::subtract(memory, cv::Scalar(1), memory);  // saturates at 0
   }
@@ -284,13 +296,16 @@ SdoResult SdoClassifier::Classify(const Segmentation& segments,
   PaintLabels(seg, known, moving, &memory, &result);
   memory_ = memory;
   // Seen moving: selected by motion on clear boundaries (unmapped_min_outline_on_boundary).
-  std::vector<uint8_t> seen_moving(stats.size(), 0);
-  for (size_t s = 0; s < stats.size(); ++s) {
-    seen_moving[s] =
-        (moving[s] & 1) && stats[s].outline_on_boundary >=
-                               options_.unmapped_min_outline_on_boundary * stats[s].outline;
+  std::vector<uint8_t> seen_moving;
+  if (options_.unmapped_frames > 0) {
+    seen_moving.resize(stats.size());
+    for (size_t s = 0; s < stats.size(); ++s) {
+      seen_moving[s] =
+          (moving[s] & 1) && stats[s].outline_on_boundary >=
+                                 options_.unmapped_min_outline_on_boundary * stats[s].outline;
+    }
   }
-  const cv::Mat recently_moving = RecentlyMoving(seg, known, seen_moving, flow);
+  const cv::Mat recently_moving = RecentlyMoving(seg, known, seen_moving, backward_map);
   if (options_.margin_px > 0) {
     // Grow dynamic regions (max filter: known-movable wins over moving-unknown only by value
     // order, which is fine: both are dynamic).
@@ -310,11 +325,11 @@ SdoResult SdoClassifier::Classify(const Segmentation& segments,
 
 cv::Mat SdoClassifier::RecentlyMoving(const cv::Mat& seg, const cv::Mat& known,
                                       const std::vector<uint8_t>& seen_moving,
-                                      const cv::Mat& flow) {
+                                      const cv::Mat& backward_map) {
   if (options_.unmapped_frames == 0) return {};
   cv::Mat recent(seg.size(), CV_8U, cv::Scalar(0));
   if (!recently_moving_.empty() && recently_moving_.size() == seg.size()) {
-    recent = CarryAlongFlow(recently_moving_, flow);
+    recent = CarryAlongFlow(recently_moving_, backward_map);
     cv::subtract(recent, cv::Scalar(1), recent);  // saturates at 0
   }
   const uint8_t refresh = static_cast<uint8_t>(options_.unmapped_frames);

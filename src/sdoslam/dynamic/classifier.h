@@ -141,11 +141,11 @@ class SdoClassifier {
   // freshly selected by motion (`moving` & 1) refresh `memory` to persistence_frames.
   void PaintLabels(const cv::Mat& seg, const cv::Mat& known, const std::vector<uint8_t>& moving,
                    cv::Mat* memory, SdoResult* result) const;
-  // The regions seen moving within unmapped_frames (recently_moving_ carried along `flow` to
-  // this frame and counted down), refreshed on the `known` pixels and the `seen_moving`
-  // segments of `seg`; empty when unmapped_frames is 0.
+  // The regions seen moving within unmapped_frames (recently_moving_ carried to this frame by
+  // `backward_map`, the flow as cv::remap takes it, and counted down), refreshed on the `known`
+  // pixels and the `seen_moving` segments of `seg`; empty when unmapped_frames is 0.
   cv::Mat RecentlyMoving(const cv::Mat& seg, const cv::Mat& known,
-                         const std::vector<uint8_t>& seen_moving, const cv::Mat& flow);
+                         const std::vector<uint8_t>& seen_moving, const cv::Mat& backward_map);
   SdoClassifierOptions options_;
   cv::Mat memory_;  // CV_8U at work resolution: frames left for which a moved region persists
   // CV_8U at work resolution: frames left for which a region seen moving stays unmapped.
