@@ -814,6 +814,69 @@ TEST(SlamInput, ExtractionTakesTheCallersGreyImageAndKeepsTheColours) {
   }
 }
 
+// The front end's inputs reach the frame's features where they fit: labels make features
+// dynamic, the unmapped mask makes static features unmappable (tracked, never mapped); inputs of
+// the wrong size or type are named with their frame instead.
+TEST(SlamInput, DynamicInputsMarkTheFeaturesAndWrongOnesAreNamed) {
+  const CameraOptions camera = synth::SyntheticCamera();
+  const System slam(camera, SlamOptions{});
+  cv::Mat bgr(camera.height, camera.width, CV_8UC3);
+  cv::RNG rng(11);
+  rng.fill(bgr, cv::RNG::UNIFORM, 0, 255);
+  cv::GaussianBlur(bgr, bgr, {0, 0}, 1.5);
+  const cv::Mat depth(bgr.size(), CV_32F, cv::Scalar(2.0f));
+  PreparedFrame prepared = slam.ExtractFeatures(3, 0.0, bgr, depth);
+  ASSERT_GT(prepared.frame.size(), 100u);
+  // Left third dynamic, middle third unmapped (the mask also covers the left third: a dynamic
+  // feature is not static to begin with), right third plain static.
+  const int third = camera.width / 3;
+  cv::Mat labels(bgr.size(), CV_8U, cv::Scalar(0)), unmapped(bgr.size(), CV_8U, cv::Scalar(0));
+  labels.colRange(0, third).setTo(2);
+  unmapped.colRange(0, 2 * third).setTo(255);
+  slam.AddDynamicInputs(&prepared, labels, cv::Mat(), {}, unmapped);
+  int dynamic = 0, unmappable = 0, plain = 0;
+  for (size_t i = 0; i < prepared.frame.size(); ++i) {
+    const int f = static_cast<int>(i);
+    const float x = prepared.frame.keypoints[i].pt.x;
+    if (x < third - 1) {
+      EXPECT_FALSE(prepared.frame.IsStatic(f)) << x;
+      dynamic += !prepared.frame.IsStatic(f);
+    } else if (x > third + 1 && x < 2 * third - 1) {
+      EXPECT_TRUE(prepared.frame.IsStatic(f)) << x;
+      EXPECT_FALSE(prepared.frame.Mappable(f)) << x;
+      unmappable += !prepared.frame.Mappable(f);
+    } else if (x > 2 * third + 1) {
+      EXPECT_TRUE(prepared.frame.IsStatic(f) && prepared.frame.Mappable(f)) << x;
+      ++plain;
+    }
+  }
+  EXPECT_GT(dynamic, 20);
+  EXPECT_GT(unmappable, 20);
+  EXPECT_GT(plain, 20);
+
+  const cv::Mat half(camera.height / 2, camera.width / 2, CV_8U, cv::Scalar(0));
+  const cv::Mat wide(bgr.size(), CV_16U, cv::Scalar(0));
+  const cv::Mat too_large(camera.height + 1, camera.width, CV_32S, cv::Scalar(0));
+  const auto message_of = [&](const cv::Mat& l, const cv::Mat& s, const cv::Mat& u) {
+    PreparedFrame p = slam.ExtractFeatures(7, 0.0, bgr, depth);
+    return testing::MessageOf([&] { slam.AddDynamicInputs(&p, l, s, {}, u); });
+  };
+  for (const cv::Mat& wrong : {half, wide}) {
+    EXPECT_NE(message_of(wrong, cv::Mat(), cv::Mat())
+                  .find("frame 7: the dynamic label image is not 8-bit single-channel"),
+              std::string::npos);
+    EXPECT_NE(message_of(cv::Mat(), cv::Mat(), wrong)
+                  .find("frame 7: the unmapped mask is not 8-bit single-channel of the frame's "
+                        "size"),
+              std::string::npos);
+  }
+  for (const cv::Mat& wrong : {too_large, cv::Mat(half)}) {
+    EXPECT_NE(message_of(cv::Mat(), wrong, cv::Mat())
+                  .find("frame 7: the segment image is not 32-bit single-channel"),
+              std::string::npos);
+  }
+}
+
 TEST(SlamOptionsTest, ConfigSectionsAreReadAndUnknownKeysRejected) {
   ConfigMap good =
       ConfigMap::LoadString("orb:\n  num_features: 1500\ntracking:\n  min_inliers: 40\n", "c.yaml");
