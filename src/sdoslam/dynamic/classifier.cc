@@ -202,8 +202,7 @@ cv::Mat BackwardMap(const cv::Mat& flow, cv::Size work) {
 cv::Mat CarryAlongFlow(const cv::Mat& memory, const cv::Mat& backward_map) {
   if (backward_map.empty()) return memory.clone();
   cv::Mat carried(memory.size(), CV_8U, cv::Scalar(0));
-  cv::remap(memory, carried, backward_map, cv::noArray(), cv::INTER_NEAREST,
-            cv::BORDER_CONSTANT);
+  cv::remap(memory, carried, backward_map, cv::noArray(), cv::INTER_NEAREST, cv::BORDER_CONSTANT);
   return carried;
 }
 
@@ -278,8 +277,8 @@ SdoResult SdoClassifier::Classify(const Segmentation& segments,
   // Unknown objects: selected by motion boundaries, or remembered from the frames before.
   const int max_area = static_cast<int>(options_.max_segment_area * work.area());
   std::vector<uint8_t> moving = SelectedByMotion(stats, max_area, options_);
-  const bool carries_recent = options_.unmapped_frames > 0 && !recently_moving_.empty() &&
-                              recently_moving_.size() == work;
+  const bool carries_recent =
+      options_.unmapped_frames > 0 && !recently_moving_.empty() && recently_moving_.size() == work;
   const bool carries_memory = !memory_.empty() && memory_.size() == work;
   const cv::Mat backward_map =
       carries_memory || carries_recent ? BackwardMap(flow, work) : cv::Mat();
