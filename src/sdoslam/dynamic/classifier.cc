@@ -232,6 +232,37 @@ void MarkRemembered(const cv::Mat& memory, const cv::Mat& seg,
   }
 }
 
+// The boundary mask at work resolution (`work_mask`, 0/255; all 0 without a mask) and the band
+// of `band_px` around it in which a segment's outline counts as on a boundary.
+cv::Mat BoundaryBand(const cv::Mat& boundary_mask, cv::Size work, int band_px, cv::Mat* work_mask) {
+  cv::Mat band(work, CV_8U, cv::Scalar(0));
+  if (boundary_mask.empty()) {
+    *work_mask = cv::Mat(work, CV_8U, cv::Scalar(0));
+    return band;
+  }
+  cv::resize(boundary_mask, *work_mask, work, 0, 0, cv::INTER_AREA);
+  cv::threshold(*work_mask, *work_mask, 0, 255, cv::THRESH_BINARY);
+  cv::dilate(*work_mask, band,
+             cv::getStructuringElement(cv::MORPH_RECT, {2 * band_px + 1, 2 * band_px + 1}));
+  return band;
+}
+
+// Per segment, whether it was seen moving: freshly selected by motion (`moving` & 1) with at
+// least unmapped_min_outline_on_boundary of its outline on boundaries. Empty when
+// unmapped_frames is 0 (nothing is kept unmapped).
+std::vector<uint8_t> SeenMoving(const std::vector<SegmentStats>& stats,
+                                const std::vector<uint8_t>& moving,
+                                const SdoClassifierOptions& options) {
+  std::vector<uint8_t> seen;
+  if (options.unmapped_frames == 0) return seen;
+  seen.resize(stats.size());
+  for (size_t s = 0; s < stats.size(); ++s) {
+    seen[s] = (moving[s] & 1) && stats[s].outline_on_boundary >=
+                                     options.unmapped_min_outline_on_boundary * stats[s].outline;
+  }
+  return seen;
+}
+
 }  // namespace
 
 SdoResult SdoClassifier::Classify(const Segmentation& segments,
@@ -253,16 +284,8 @@ SdoResult SdoClassifier::Classify(const Segmentation& segments,
   const int n = segments.count;
   cv::Mat depth_work(work, CV_32F, cv::Scalar(0));
   if (!depth.empty()) cv::resize(depth, depth_work, work, 0, 0, cv::INTER_NEAREST);
-  cv::Mat near_boundary(work, CV_8U, cv::Scalar(0));
-  if (!boundary_mask.empty()) {
-    cv::resize(boundary_mask, result.boundary_mask, work, 0, 0, cv::INTER_AREA);
-    cv::threshold(result.boundary_mask, result.boundary_mask, 0, 255, cv::THRESH_BINARY);
-    const int r = options_.boundary_band_px;
-    cv::dilate(result.boundary_mask, near_boundary,
-               cv::getStructuringElement(cv::MORPH_RECT, {2 * r + 1, 2 * r + 1}));
-  } else {
-    result.boundary_mask = cv::Mat(work, CV_8U, cv::Scalar(0));
-  }
+  const cv::Mat near_boundary =
+      BoundaryBand(boundary_mask, work, options_.boundary_band_px, &result.boundary_mask);
   const std::vector<SegmentStats> stats =
       MeasureSegments(seg, n, depth_work, near_boundary, options_.in_front_ratio);
 
@@ -294,17 +317,8 @@ SdoResult SdoClassifier::Classify(const Segmentation& segments,
   }
   PaintLabels(seg, known, moving, &memory, &result);
   memory_ = memory;
-  // Seen moving: selected by motion on clear boundaries (unmapped_min_outline_on_boundary).
-  std::vector<uint8_t> seen_moving;
-  if (options_.unmapped_frames > 0) {
-    seen_moving.resize(stats.size());
-    for (size_t s = 0; s < stats.size(); ++s) {
-      seen_moving[s] =
-          (moving[s] & 1) && stats[s].outline_on_boundary >=
-                                 options_.unmapped_min_outline_on_boundary * stats[s].outline;
-    }
-  }
-  const cv::Mat recently_moving = RecentlyMoving(seg, known, seen_moving, backward_map);
+  const cv::Mat recently_moving =
+      RecentlyMoving(seg, known, SeenMoving(stats, moving, options_), backward_map);
   if (options_.margin_px > 0) {
     // Grow dynamic regions (max filter: known-movable wins over moving-unknown only by value
     // order, which is fine: both are dynamic).
