@@ -768,16 +768,22 @@ TEST_F(SlamLoopClosing, TheLongLoopIsClosedAtTheRevisitAndTheErrorAtLeastHalved)
   EXPECT_LE(Ate(skipped), 0.5 * Ate(without));
 }
 
+// A colour image of blurred noise (seeded): corners everywhere, for feature extraction.
+cv::Mat BlurredNoise(const CameraOptions& camera, uint64_t seed) {
+  cv::Mat bgr(camera.height, camera.width, CV_8UC3);
+  cv::RNG rng(seed);
+  rng.fill(bgr, cv::RNG::UNIFORM, 0, 255);
+  cv::GaussianBlur(bgr, bgr, {0, 0}, 1.5);
+  return bgr;
+}
+
 // The grey image a caller has made (the pipeline makes it once a frame, for the features, the
 // check and the front end's flow) gives the same features as the colour image alone, and the
 // features keep the colour image's colours (map.ply); one that does not fit is named.
 TEST(SlamInput, ExtractionTakesTheCallersGreyImageAndKeepsTheColours) {
   const CameraOptions camera = synth::SyntheticCamera();
   const System slam(camera, SlamOptions{});
-  cv::Mat bgr(camera.height, camera.width, CV_8UC3);
-  cv::RNG rng(5);
-  rng.fill(bgr, cv::RNG::UNIFORM, 0, 255);
-  cv::GaussianBlur(bgr, bgr, {0, 0}, 1.5);
+  const cv::Mat bgr = BlurredNoise(camera, 5);
   const cv::Mat depth(bgr.size(), CV_32F, cv::Scalar(2.0f));
   cv::Mat gray;
   cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
@@ -820,10 +826,7 @@ TEST(SlamInput, ExtractionTakesTheCallersGreyImageAndKeepsTheColours) {
 TEST(SlamInput, DynamicInputsMarkTheFeaturesAndWrongOnesAreNamed) {
   const CameraOptions camera = synth::SyntheticCamera();
   const System slam(camera, SlamOptions{});
-  cv::Mat bgr(camera.height, camera.width, CV_8UC3);
-  cv::RNG rng(11);
-  rng.fill(bgr, cv::RNG::UNIFORM, 0, 255);
-  cv::GaussianBlur(bgr, bgr, {0, 0}, 1.5);
+  const cv::Mat bgr = BlurredNoise(camera, 11);
   const cv::Mat depth(bgr.size(), CV_32F, cv::Scalar(2.0f));
   PreparedFrame prepared = slam.ExtractFeatures(3, 0.0, bgr, depth);
   ASSERT_GT(prepared.frame.size(), 100u);
