@@ -196,6 +196,17 @@ SceneObject PersonStoppingClose(const Placement& p) {
       stop_time, stand);
 }
 
+// A box standing still 0.6 of the way to the scene, right of centre, whose depth the sensor
+// reads 4 % too far (a material's bias): static, never dynamic.
+SceneObject BiasedStillBox(const Placement& p) {
+  const Isometry3d pose = p.T_world_anchor * Pose(OnAxis(p, 0.6, {0.15, 0, -0.05}));
+  SceneObject box = RigidBox(
+      31, "biased_box", [pose](double) { return pose; }, Vector3d(0.14, 0.1, 0.09),
+      Vector3f(0.3f, 0.7f, 0.4f), 4031u);
+  box.depth_bias = 0.04;
+  return box;
+}
+
 void CheckScenarioName(const std::string& name) {
   const auto names = BackgroundScenarioNames();
   if (std::find(names.begin(), names.end(), name) != names.end()) return;
@@ -221,6 +232,8 @@ Scene MakeBackgroundScene(const std::string& name, const Placement& p) {
     scene.objects = {PersonFillingTheView(p)};
   } else if (name == "person_stops_close") {
     scene.objects = {PersonStoppingClose(p)};
+  } else if (name == "biased_box") {
+    scene.objects = {BiasedStillBox(p)};
   } else {
     CheckScenarioName(name);  // throws, listing the known names
   }
@@ -230,8 +243,8 @@ Scene MakeBackgroundScene(const std::string& name, const Placement& p) {
 }  // namespace
 
 std::vector<std::string> BackgroundScenarioNames() {
-  return {"static", "carried_box",       "swinging_boxes",    "people",
-          "mixed",  "person_fills_view", "person_stops_close"};
+  return {"static", "carried_box",       "swinging_boxes",     "people",
+          "mixed",  "person_fills_view", "person_stops_close", "biased_box"};
 }
 
 void BackgroundSynthOptions::Check() const {
@@ -297,7 +310,7 @@ Playback PlayRecording(const TumDataset& recording, const Trajectory& ground_tru
 // (z-buffered against the recorded depth; where the sensor saw nothing, the object is in front),
 // and the frame returned keeps the recorded pixels as recorded, except on the objects and the
 // sensor's shadow next to their outlines.
-SensorFrame Composite(const RgbdFrame& background, const RenderedView& objects,
+SensorFrame Composite(const RgbdFrame& background, const RenderedView& objects, const Scene& scene,
                       const BackgroundSynthOptions& options, int index, RenderedView* out) {
   RenderedView& composite = *out;
   const cv::Mat object_mask =
@@ -308,7 +321,13 @@ SensorFrame Composite(const RgbdFrame& background, const RenderedView& objects,
   objects.depth.copyTo(composite.depth, object_mask);
   composite.instance = cv::Mat::zeros(objects.instance.size(), CV_16UC1);
   objects.instance.copyTo(composite.instance, object_mask);
-  const SensorFrame sensed = Sense(composite, options.camera, options.sensor, options.seed, index);
+  SensorFrame sensed = Sense(composite, options.camera, options.sensor, options.seed, index);
+  for (const SceneObject& object : scene.objects) {
+    if (object.depth_bias == 0.0) continue;
+    cv::Mat misread;
+    sensed.depth.convertTo(misread, CV_16UC1, 1.0 + object.depth_bias);
+    misread.copyTo(sensed.depth, object_mask & (composite.instance == object.id));
+  }
 
   SensorFrame frame;
   frame.bgr = background.bgr.clone();
@@ -370,7 +389,7 @@ SequenceSummary WriteBackgroundSequence(const BackgroundSynthOptions& options,
 
     RenderedView composite;
     const SensorFrame frame =
-        Composite(background, objects, options, static_cast<int>(i), &composite);
+        Composite(background, objects, scene, options, static_cast<int>(i), &composite);
     render_seconds +=
         std::chrono::duration<double>(std::chrono::steady_clock::now() - render_start).count();
     writer.AddFrame(first_stamp + t, t, dt, frame, composite.instance, T_world_camera, scene);

@@ -38,7 +38,8 @@ struct BackgroundSynthOptions {
 // box and a walking person; person_fills_view: a person walks up to the camera, fills the whole
 // view for about half a second (0.6 of the way through), turns and walks away;
 // person_stops_close: a person walks up from 2.2 m, stands 0.75 m ahead for a second (about half
-// the image, head cut off), then walks back.
+// the image, head cut off), then walks back; biased_box: a box standing still in front of the
+// scene whose depth the sensor reads 4 % too far (a material's bias), static throughout.
 std::vector<std::string> BackgroundScenarioNames();
 
 // Writes the sequence to `out` in the layout of WriteSequence, with the recording's camera in

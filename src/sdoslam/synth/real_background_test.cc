@@ -107,6 +107,51 @@ TEST_F(RealBackgroundTest, ObjectsAreZBufferedIntoTheRecordingAlongItsRealTrajec
   EXPECT_NEAR(z_centre, centre_camera.z() - 0.06, 0.02);
 }
 
+// biased_box: a box standing still, whose depth the sensor reads 4 % too far. Along the ray
+// through its centre the depth is 1.04 times the distance to the box's near face (computed here
+// from its pose and size, not from the renderer), and the ground truth never calls it dynamic.
+TEST_F(RealBackgroundTest, TheBiasedBoxStandsStillAndReadsFourPercentTooFar) {
+  const BackgroundSynthOptions options = DeskOptions("biased_box", 3);
+  const auto out = dir_ / "biased";
+  const SequenceSummary summary = WriteBackgroundSequence(options, out);
+  EXPECT_EQ(summary.dynamic_fraction_max, 0.0);
+  const TumDataset written(out, LoadCameraConfig(out / "camera.yaml"));
+  const Trajectory gt = ReadTumTrajectory(out / "groundtruth.txt");
+  std::istringstream lines(testing::ReadText(out / "object_poses.txt"));
+  std::string line;
+  std::getline(lines, line);  // header
+  double stamp, id, x, y, z, qx, qy, qz, qw;
+  lines >> stamp >> id >> x >> y >> z >> qx >> qy >> qz >> qw;
+  EXPECT_EQ(id, 31);
+  Eigen::Isometry3d T_world_box = Eigen::Isometry3d::Identity();
+  T_world_box.linear() = Eigen::Quaterniond(qw, qx, qy, qz).normalized().toRotationMatrix();
+  T_world_box.translation() = Eigen::Vector3d(x, y, z);
+  const Eigen::Isometry3d T_box_camera = T_world_box.inverse() * gt[0].T_world_camera;
+  const Camera camera(options.camera);
+  const Eigen::Vector3d centre_camera = T_box_camera.inverse().translation();
+  const Eigen::Vector2d uv = camera.Distort(camera.Project(centre_camera));
+  // The ray through that pixel (depth 1 along it), into the box's frame; the slab method gives
+  // where it enters the box, which is the near face's depth.
+  const Eigen::Vector2d undistorted = camera.Project(centre_camera);
+  const Eigen::Vector3d origin = T_box_camera.translation();
+  const Eigen::Vector3d direction = T_box_camera.linear() * camera.Unproject(undistorted, 1.0);
+  const Eigen::Vector3d half(0.14, 0.1, 0.09);
+  double enters = 0;
+  for (int a = 0; a < 3; ++a) {
+    const double t0 = (-half[a] - origin[a]) / direction[a],
+                 t1 = (half[a] - origin[a]) / direction[a];
+    enters = std::max(enters, std::min(t0, t1));
+  }
+  ASSERT_GT(enters, 0.3);
+  const float sensed =
+      written.Load(0).depth.at<float>(static_cast<int>(uv.y()), static_cast<int>(uv.x()));
+  // Noise is a few mm at 1 m; the bias is 4 cm.
+  EXPECT_NEAR(sensed, 1.04 * enters, 0.012) << enters;
+  const cv::Mat instance = cv::imread(
+      (out / "instance" / written.entries()[0].rgb_path.filename()).string(), cv::IMREAD_UNCHANGED);
+  EXPECT_EQ(instance.at<uint16_t>(static_cast<int>(uv.y()), static_cast<int>(uv.x())), 31);
+}
+
 TEST_F(RealBackgroundTest, PeopleAreDetectedAsPersonsAndUnknownScenariosAreErrors) {
   const auto out = dir_ / "people";
   BackgroundSynthOptions options = DeskOptions("people", 30);

@@ -90,6 +90,9 @@ struct SceneObject {
   std::function<std::vector<Primitive>(double t)> parts_at;
   // Pose of the object's reference frame at time t (ground truth object poses).
   std::function<Eigen::Isometry3d(double t)> pose_at;
+  // The sensor reads the object's depth (1 + depth_bias) times as far as it is: real sensors
+  // misread some materials by a few percent (only over a real background).
+  double depth_bias = 0.0;
   // Whether the object moves between t0 and t1 (for the dynamic mask).
   bool MovesBetween(double t0, double t1) const;
 };
