@@ -75,31 +75,33 @@ Frame::Frame(size_t frame_index, double time, const cv::Mat& bgr, const cv::Mat&
   BuildGrid();
 }
 
+std::vector<uint8_t> Frame::ValuesAtKeypoints(const cv::Mat& image) const {
+  CV_Assert(image.type() == CV_8UC1);
+  std::vector<uint8_t> values(size());
+  for (size_t i = 0; i < size(); ++i) {
+    const int u = std::clamp(static_cast<int>(std::lround(keypoints[i].pt.x)), 0, image.cols - 1);
+    const int v = std::clamp(static_cast<int>(std::lround(keypoints[i].pt.y)), 0, image.rows - 1);
+    values[i] = image.at<uint8_t>(v, u);
+  }
+  return values;
+}
+
 void Frame::SetLabels(const cv::Mat& label_image) {
-  label.assign(size(), 0);
-  if (!label_image.empty()) {
-    CV_Assert(label_image.type() == CV_8UC1);
-    for (size_t i = 0; i < size(); ++i) {
-      const int u =
-          std::clamp(static_cast<int>(std::lround(keypoints[i].pt.x)), 0, label_image.cols - 1);
-      const int v =
-          std::clamp(static_cast<int>(std::lround(keypoints[i].pt.y)), 0, label_image.rows - 1);
-      label[i] = label_image.at<uint8_t>(v, u);
-      if (label[i] != 0) map_points[i] = nullptr;
-    }
+  if (label_image.empty()) {
+    label.assign(size(), 0);
+    return;
+  }
+  label = ValuesAtKeypoints(label_image);
+  for (size_t i = 0; i < size(); ++i) {
+    if (label[i] != 0) map_points[i] = nullptr;
   }
 }
 
 void Frame::SetUnmappable(const cv::Mat& mask) {
   unmappable_.clear();
   if (mask.empty()) return;
-  CV_Assert(mask.type() == CV_8UC1);
-  unmappable_.assign(size(), 0);
-  for (size_t i = 0; i < size(); ++i) {
-    const int u = std::clamp(static_cast<int>(std::lround(keypoints[i].pt.x)), 0, mask.cols - 1);
-    const int v = std::clamp(static_cast<int>(std::lround(keypoints[i].pt.y)), 0, mask.rows - 1);
-    unmappable_[i] = mask.at<uint8_t>(v, u) != 0;
-  }
+  unmappable_ = ValuesAtKeypoints(mask);
+  for (uint8_t& u : unmappable_) u = u != 0;
 }
 
 void Frame::MarkDynamic(int i, uint8_t dynamic_label) {

@@ -67,9 +67,9 @@ class Frame {
   // to the map. An empty mask clears the marks.
   void SetUnmappable(const cv::Mat& mask);
   // Whether feature i may make a map point (keyframe points from depth, triangulation, the
-  // tracker's temporary points).
-  bool Mappable(int i) const {
-    return unmappable_.empty() || unmappable_[static_cast<size_t>(i)] == 0;
+  // tracker's temporary points): static, and not where something was seen moving lately.
+  bool MakesPoints(int i) const {
+    return IsStatic(i) && (unmappable_.empty() || unmappable_[static_cast<size_t>(i)] == 0);
   }
   // Keypoint i back-projected with its depth, in world coordinates at the frame's pose.
   Eigen::Vector3d UnprojectWorld(int i) const;
@@ -97,6 +97,8 @@ class Frame {
 
  private:
   void BuildGrid();
+  // The value of `image` (CV_8U, image size) at each keypoint's (rounded, clamped) position.
+  std::vector<uint8_t> ValuesAtKeypoints(const cv::Mat& image) const;
   int GridCell(int i) const;  // -1 outside the grid
   // Features per grid cell: those of cell c are grid_features_[grid_start_[c] ..
   // grid_start_[c + 1]).

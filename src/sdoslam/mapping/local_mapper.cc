@@ -220,17 +220,14 @@ int LocalMapper::TriangulateNewPoints(KeyFrame* kf) {
     for (size_t j = 0; j < other->frame.size(); ++j) {
       const MapPoint* p = other->frame.map_points[j];
       const int feature = static_cast<int>(j);
-      if ((p == nullptr || p->bad) && other->frame.IsStatic(feature) &&
-          other->frame.Mappable(feature))
-        free_other.push_back(static_cast<int>(j));
+      if ((p == nullptr || p->bad) && other->frame.MakesPoints(feature))
+        free_other.push_back(feature);
     }
     std::vector<bool> used(other->frame.size(), false);
     for (size_t i = 0; i < kf->frame.size(); ++i) {
       const MapPoint* existing = kf->frame.map_points[i];
       const int feature = static_cast<int>(i);
-      if ((existing != nullptr && !existing->bad) || !kf->frame.IsStatic(feature) ||
-          !kf->frame.Mappable(feature))
-        continue;
+      if ((existing != nullptr && !existing->bad) || !kf->frame.MakesPoints(feature)) continue;
       const Eigen::Vector3d x1(kf->frame.undistorted[i].x, kf->frame.undistorted[i].y, 1.0);
       const BestTwo nearest =
           NearestOnEpipolarLine(kf->frame.descriptors.ptr<uint8_t>(static_cast<int>(i)), F * x1,

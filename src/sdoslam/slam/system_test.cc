@@ -846,10 +846,10 @@ TEST(SlamInput, DynamicInputsMarkTheFeaturesAndWrongOnesAreNamed) {
       dynamic += !prepared.frame.IsStatic(f);
     } else if (x > third + 1 && x < 2 * third - 1) {
       EXPECT_TRUE(prepared.frame.IsStatic(f)) << x;
-      EXPECT_FALSE(prepared.frame.Mappable(f)) << x;
-      unmappable += !prepared.frame.Mappable(f);
+      EXPECT_FALSE(prepared.frame.MakesPoints(f)) << x;
+      unmappable += !prepared.frame.MakesPoints(f);
     } else if (x > 2 * third + 1) {
-      EXPECT_TRUE(prepared.frame.IsStatic(f) && prepared.frame.Mappable(f)) << x;
+      EXPECT_TRUE(prepared.frame.MakesPoints(f)) << x;
       ++plain;
     }
   }

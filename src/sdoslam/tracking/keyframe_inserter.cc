@@ -56,8 +56,8 @@ KeyFrame* CreateKeyFrame(Map* map, const TrackerOptions& options, Frame& frame) 
   std::vector<std::pair<float, int>> by_depth;
   for (size_t i = 0; i < kf->frame.size(); ++i) {
     const int feature = static_cast<int>(i);
-    if (kf->frame.IsStaticWithDepth(feature) && kf->frame.Mappable(feature))
-      by_depth.emplace_back(kf->frame.depth[i], static_cast<int>(i));
+    if (kf->frame.MakesPoints(feature) && kf->frame.HasDepth(feature))
+      by_depth.emplace_back(kf->frame.depth[i], feature);
   }
   std::sort(by_depth.begin(), by_depth.end());
   int count = 0;

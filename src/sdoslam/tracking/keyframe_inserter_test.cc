@@ -232,7 +232,7 @@ TEST_F(KeyFrameInserterTest, UnmappableFeaturesMakeNoPoints) {
   EXPECT_GT(right_points, 10u);
   for (size_t i : close_) EXPECT_TRUE(frame_->IsStatic(static_cast<int>(i)));  // still tracked
   frame_->SetUnmappable(cv::Mat());  // cleared: every feature may make a point again
-  for (size_t i = 0; i < frame_->size(); ++i) EXPECT_TRUE(frame_->Mappable(static_cast<int>(i)));
+  for (size_t i = 0; i < frame_->size(); ++i) EXPECT_TRUE(frame_->MakesPoints(static_cast<int>(i)));
 }
 
 TEST_F(KeyFrameInserterTest, FarFeaturesMakeUpMinClosePoints) {

@@ -222,8 +222,8 @@ void Tracker::MakeTemporaryPoints() {
   std::vector<std::pair<float, int>> by_depth;
   for (size_t i = 0; i < last.size(); ++i) {
     const int feature = static_cast<int>(i);
-    if (last.IsStaticWithDepth(feature) && last.Mappable(feature))
-      by_depth.emplace_back(last.depth[i], static_cast<int>(i));
+    if (last.MakesPoints(feature) && last.HasDepth(feature))
+      by_depth.emplace_back(last.depth[i], feature);
   }
   std::sort(by_depth.begin(), by_depth.end());
   int count = 0;
