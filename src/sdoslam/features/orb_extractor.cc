@@ -41,6 +41,8 @@ void OrbOptions::Check(const std::string& path) const {
                 "min_fast_threshold must satisfy 1 <= min <= initial");
   }
   if (detection_cell < 10) throw Error(path + "detection_cell must be >= 10 pixels");
+  if (budget_margin_px < 0 || budget_margin_px > 100)
+    throw Error(path + "budget_margin_px must be in 0..100 pixels");
 }
 
 std::vector<cv::KeyPoint> DistributeEvenly(const std::vector<cv::KeyPoint>& keypoints,
@@ -125,8 +127,8 @@ OrbExtractor::OrbExtractor(const OrbOptions& options) : options_(options) {
                                 cv::ORB::HARRIS_SCORE, kPatchSize, options_.fast_threshold);
 }
 
-std::vector<cv::KeyPoint> OrbExtractor::DetectLevel(const cv::Mat& image, int level,
-                                                    int quota) const {
+std::vector<cv::KeyPoint> OrbExtractor::DetectLevel(const cv::Mat& image, int level, int quota,
+                                                    const ExtractionAreas& areas) const {
   const cv::Rect area(kBorder, kBorder, image.cols - 2 * kBorder, image.rows - 2 * kBorder);
   std::vector<cv::KeyPoint> all;
   if (area.width < 8 || area.height < 8) return all;
@@ -155,7 +157,22 @@ std::vector<cv::KeyPoint> OrbExtractor::DetectLevel(const cv::Mat& image, int le
       }
     }
   }
-  return DistributeEvenly(all, area, quota);
+  if (areas.budget.empty()) return DistributeEvenly(all, area, quota);
+  const auto on = [&](const cv::Mat& mask, const cv::KeyPoint& k) {
+    const double s = scale_[static_cast<size_t>(level)];
+    const int x = std::clamp(static_cast<int>(std::lround(k.pt.x * s)), 0, mask.cols - 1);
+    const int y = std::clamp(static_cast<int>(std::lround(k.pt.y * s)), 0, mask.rows - 1);
+    return mask.at<uint8_t>(y, x) != 0;
+  };
+  std::vector<cv::KeyPoint> in_budget;
+  for (const cv::KeyPoint& k : all)
+    if (on(areas.budget, k)) in_budget.push_back(k);
+  std::vector<cv::KeyPoint> kept = DistributeEvenly(in_budget, area, quota);
+  if (!areas.extra.empty()) {
+    for (const cv::KeyPoint& k : DistributeEvenly(all, area, quota))
+      if (on(areas.extra, k) && !on(areas.budget, k)) kept.push_back(k);
+  }
+  return kept;
 }
 
 cv::Mat OrbExtractor::DescribeLevel(const cv::Mat& level_image, int level,
@@ -192,8 +209,10 @@ cv::Mat OrbExtractor::DescribeLevel(const cv::Mat& level_image, int level,
 }
 
 void OrbExtractor::Extract(const cv::Mat& gray, std::vector<cv::KeyPoint>* keypoints,
-                           cv::Mat* descriptors) const {
+                           cv::Mat* descriptors, const ExtractionAreas& areas) const {
   CV_Assert(gray.type() == CV_8UC1);
+  for (const cv::Mat* mask : {&areas.budget, &areas.extra})
+    CV_Assert(mask->empty() || (mask->type() == CV_8UC1 && mask->size() == gray.size()));
   keypoints->clear();
   std::vector<cv::Mat> level_descriptors;
   cv::Mat level_image = gray;
@@ -204,7 +223,8 @@ void OrbExtractor::Extract(const cv::Mat& gray, std::vector<cv::KeyPoint>* keypo
       if (size.width < 2 * kBorder + 8 || size.height < 2 * kBorder + 8) break;
       cv::resize(gray, level_image, size, 0, 0, cv::INTER_LINEAR);
     }
-    std::vector<cv::KeyPoint> kps = DetectLevel(level_image, level, features_per_level_[level]);
+    std::vector<cv::KeyPoint> kps =
+        DetectLevel(level_image, level, features_per_level_[level], areas);
     // Orientation by intensity centroid over a circular patch.
     for (cv::KeyPoint& k : kps) {
       const int cx = static_cast<int>(std::lround(k.pt.x)),

@@ -48,6 +48,62 @@ TEST(OrbExtractor, FindsAboutTheRequestedNumberSpreadOverTheImage) {
   EXPECT_EQ(levels.size(), 8u);
 }
 
+// With a budget area, the whole budget goes there, and the extra area keeps exactly the
+// keypoints a whole-image budget put on it.
+TEST(OrbExtractor, TheBudgetGoesToItsAreaAndTheExtraAreaKeepsWhatItHad) {
+  const OrbExtractor orb(OrbOptions{});
+  const cv::Mat image = BlockImage(3);
+  std::vector<cv::KeyPoint> whole;
+  cv::Mat whole_descriptors;
+  orb.Extract(image, &whole, &whole_descriptors);
+  // A mover over the right 60 % of the image; the budget keeps 8 px away from it.
+  ExtractionAreas areas;
+  areas.extra = cv::Mat(image.size(), CV_8U, cv::Scalar(0));
+  areas.extra(cv::Rect(256, 0, 384, 480)).setTo(255);
+  areas.budget = cv::Mat(image.size(), CV_8U, cv::Scalar(0));
+  areas.budget(cv::Rect(0, 0, 248, 480)).setTo(255);
+  std::vector<cv::KeyPoint> kps;
+  cv::Mat desc;
+  orb.Extract(image, &kps, &desc, areas);
+  ASSERT_EQ(desc.rows, static_cast<int>(kps.size()));
+  // Level-0 positions are level positions times the scale, rounded as Extract rounds them: a
+  // keypoint may lie a pixel past the area's edge.
+  int in_budget = 0, in_extra = 0, elsewhere = 0;
+  for (const auto& k : kps) {
+    if (k.pt.x < 249) {
+      ++in_budget;
+    } else if (k.pt.x >= 255) {
+      ++in_extra;
+    } else {
+      ++elsewhere;
+    }
+  }
+  int whole_in_extra = 0, whole_left = 0;
+  for (const auto& k : whole) {
+    whole_in_extra += k.pt.x >= 255.5;
+    whole_left += k.pt.x < 248;
+  }
+  // One budget over the image leaves the left 40 % about 40 % of it; the budget area gets it all.
+  EXPECT_LT(whole_left, 500);
+  EXPECT_GT(in_budget, 900);
+  EXPECT_LE(in_budget, 1000);
+  EXPECT_EQ(elsewhere, 0);
+  EXPECT_NEAR(in_extra, whole_in_extra, 2);
+  // The extra keypoints are the whole-image extraction's, descriptors included.
+  int same = 0;
+  for (int i = 0; i < static_cast<int>(kps.size()); ++i) {
+    if (kps[i].pt.x < 255) continue;
+    for (int j = 0; j < static_cast<int>(whole.size()); ++j) {
+      if (whole[j].octave == kps[i].octave && cv::norm(whole[j].pt - kps[i].pt) < 1e-3 &&
+          cv::norm(whole_descriptors.row(j), desc.row(i), cv::NORM_HAMMING) == 0) {
+        ++same;
+        break;
+      }
+    }
+  }
+  EXPECT_EQ(same, in_extra);
+}
+
 TEST(OrbExtractor, LowContrastRegionsStillGetCornersFromTheLowerThreshold) {
   cv::Mat image = BlockImage(2);
   cv::Mat left = image(cv::Rect(0, 0, 320, 480));

@@ -38,11 +38,11 @@ cv::Mat GrayImage(const cv::Mat& image) {
 
 Frame::Frame(size_t frame_index, double time, const cv::Mat& bgr, const cv::Mat& depth_image,
              std::shared_ptr<const FrameGeometry> shared_geometry, const OrbExtractor& extractor,
-             const cv::Mat& given_gray)
+             const cv::Mat& given_gray, const ExtractionAreas& areas)
     : index(frame_index), timestamp(time), geometry(std::move(shared_geometry)) {
   const cv::Mat gray = given_gray.empty() ? GrayImage(bgr) : given_gray;
   CV_Assert(gray.type() == CV_8UC1 && gray.size() == bgr.size());
-  extractor.Extract(gray, &keypoints, &descriptors);
+  extractor.Extract(gray, &keypoints, &descriptors, areas);
   std::vector<cv::Point2f> points;
   points.reserve(keypoints.size());
   for (const auto& k : keypoints) points.push_back(k.pt);

@@ -39,10 +39,11 @@ class Frame {
   // Extracts ORB features from `bgr` (CV_8UC3, or a grey CV_8UC1 image) and reads each
   // keypoint's depth from `depth` (metres, 0 = none) at the keypoint's (distorted) position, where
   // the depth image is registered, and its colour from `bgr`. `gray`: `bgr` in grey where the
-  // caller has made it already (it is made here otherwise).
+  // caller has made it already (it is made here otherwise). `areas`: where the features go
+  // (OrbExtractor::Extract).
   Frame(size_t index, double timestamp, const cv::Mat& bgr, const cv::Mat& depth,
         std::shared_ptr<const FrameGeometry> geometry, const OrbExtractor& extractor,
-        const cv::Mat& gray = cv::Mat());
+        const cv::Mat& gray = cv::Mat(), const ExtractionAreas& areas = {});
 
   size_t size() const { return keypoints.size(); }
   // Indices of static features within `radius` px of (u, v) (undistorted), on levels

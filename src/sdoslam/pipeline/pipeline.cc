@@ -68,15 +68,18 @@ StagedFrame Pipeline::Prepare(RgbdFrame input, const cv::Mat& dynamic_mask) {
   cv::Mat gray;
   cv::cvtColor(input.bgr, gray, cv::COLOR_BGR2GRAY);
   std::optional<PreparedFrame> features;
+  // With orb.budget_on_static the features are spread over what the labels call static, and
+  // wait for them.
+  const bool budget_on_static = options_.slam.orb.budget_on_static;
   auto extract = [&] {
-    features.emplace(
-        slam_->ExtractFeatures(input.index, input.timestamp, input.bgr, input.depth, gray));
+    features.emplace(slam_->ExtractFeatures(input.index, input.timestamp, input.bgr, input.depth,
+                                            gray, budget_on_static ? staged.labels : cv::Mat()));
   };
   // A thread of its own (tens of microseconds to start against 10 ms of work; ThreadSanitizer sees
   // its synchronisation, which it would not in a TBB task). The future's destructor waits for it on
   // every way out, exceptions included, before `features` goes.
   std::future<void> extraction;
-  const bool beside = front_end_ && options_.extract_beside_front_end;
+  const bool beside = front_end_ && options_.extract_beside_front_end && !budget_on_static;
   if (beside) extraction = std::async(std::launch::async, extract);
   if (front_end_) {
     const FrontEndFrame frame{input, gray};

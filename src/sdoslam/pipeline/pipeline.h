@@ -36,7 +36,8 @@ struct PipelineOptions {
   std::vector<std::filesystem::path> rgb_paths;
   // kSdo: extract the ORB features in a task beside the front end instead of after it (they need
   // only the grey image; the front end's labels join them afterwards). Same result either way;
-  // threaded runs set it so that a frame's preparation can use both cores.
+  // threaded runs set it so that a frame's preparation can use both cores. Not with
+  // slam.orb.budget_on_static, where the extraction needs the labels.
   bool extract_beside_front_end = false;
 };
 

@@ -921,7 +921,8 @@ namespace sdoslam {
 namespace {
 
 // Preparing ahead moves the front end and feature extraction of frame k + 1 into a thread that
-// runs while frame k is tracked, and there extracts the features in a task beside the front end
+// runs while frame k is tracked, and there (without orb.budget_on_static, whose extraction waits
+// for the labels) extracts the features in a task beside the front end
 // (extract_beside_front_end). With mapping inline, that must change nothing: a stage that
 // delivered frames out of order, dropped one, or let the front end see them in another order
 // would change the trajectory and the per-frame labels.
@@ -932,10 +933,12 @@ TEST(PipelineStages, PreparingAheadGivesTheInlineRunsTrajectoryBitForBit) {
     Trajectory trajectory;
     std::vector<int> dynamic_features;
   };
-  auto run_with = [&](bool ahead, size_t capacity) {
+  auto run_with = [&](bool ahead, size_t capacity, bool budget_on_static) {
     RunOptions run =
-        SyntheticRun(sequence, dir / fmt::format("out_{}_{}", ahead, capacity), RunMode::kSdo);
+        SyntheticRun(sequence, dir / fmt::format("out_{}_{}_{}", ahead, capacity, budget_on_static),
+                     RunMode::kSdo);
     run.slam.sequential = true;
+    run.slam.orb.budget_on_static = budget_on_static;
     run.prepare_ahead = ahead;
     run.prepare_queue_capacity = capacity;
     Outcome outcome;
@@ -948,20 +951,24 @@ TEST(PipelineStages, PreparingAheadGivesTheInlineRunsTrajectoryBitForBit) {
     outcome.trajectory = s.trajectory;
     return outcome;
   };
-  const Outcome inline_run = run_with(false, 2);
-  ASSERT_GE(inline_run.trajectory.size(), 55u);
-  ASSERT_GT(
-      *std::max_element(inline_run.dynamic_features.begin(), inline_run.dynamic_features.end()),
-      0);  // the people were seen, so the front end's order matters
-  for (size_t capacity : {1u, 3u}) {
-    const Outcome ahead = run_with(true, capacity);
-    EXPECT_EQ(ahead.dynamic_features, inline_run.dynamic_features) << "capacity " << capacity;
-    ASSERT_EQ(ahead.trajectory.size(), inline_run.trajectory.size());
-    for (size_t i = 0; i < ahead.trajectory.size(); ++i) {
-      ASSERT_EQ(ahead.trajectory[i].timestamp, inline_run.trajectory[i].timestamp);
-      ASSERT_TRUE(ahead.trajectory[i].T_world_camera.matrix() ==
-                  inline_run.trajectory[i].T_world_camera.matrix())
-          << "frame " << i << ", capacity " << capacity;
+  for (bool budget_on_static : {false, true}) {
+    const Outcome inline_run = run_with(false, 2, budget_on_static);
+    ASSERT_GE(inline_run.trajectory.size(), 55u);
+    ASSERT_GT(
+        *std::max_element(inline_run.dynamic_features.begin(), inline_run.dynamic_features.end()),
+        0);  // the people were seen, so the front end's order matters
+    for (size_t capacity : {1u, 3u}) {
+      const Outcome ahead = run_with(true, capacity, budget_on_static);
+      EXPECT_EQ(ahead.dynamic_features, inline_run.dynamic_features)
+          << "capacity " << capacity << ", budget_on_static " << budget_on_static;
+      ASSERT_EQ(ahead.trajectory.size(), inline_run.trajectory.size());
+      for (size_t i = 0; i < ahead.trajectory.size(); ++i) {
+        ASSERT_EQ(ahead.trajectory[i].timestamp, inline_run.trajectory[i].timestamp);
+        ASSERT_TRUE(ahead.trajectory[i].T_world_camera.matrix() ==
+                    inline_run.trajectory[i].T_world_camera.matrix())
+            << "frame " << i << ", capacity " << capacity << ", budget_on_static "
+            << budget_on_static;
+      }
     }
   }
 }

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <opencv2/imgproc.hpp>
 #include <optional>
 
 #include "sdoslam/core/error.h"
@@ -144,13 +145,14 @@ PreparedFrame System::Prepare(size_t index, double timestamp, const cv::Mat& bgr
                               const cv::Mat& depth, const cv::Mat& dynamic_labels,
                               const cv::Mat& segments,
                               const std::vector<uint8_t>& locked_segments) const {
-  PreparedFrame prepared = ExtractFeatures(index, timestamp, bgr, depth);
+  PreparedFrame prepared = ExtractFeatures(index, timestamp, bgr, depth, cv::Mat(), dynamic_labels);
   AddDynamicInputs(&prepared, dynamic_labels, segments, locked_segments);
   return prepared;
 }
 
 PreparedFrame System::ExtractFeatures(size_t index, double timestamp, const cv::Mat& bgr,
-                                      const cv::Mat& depth, const cv::Mat& given_gray) const {
+                                      const cv::Mat& depth, const cv::Mat& given_gray,
+                                      const cv::Mat& dynamic_labels) const {
   const CameraOptions& c = geometry_->camera.options();
   if (bgr.cols != c.width || bgr.rows != c.height || depth.size() != bgr.size()) {
     throw Error("frame " + std::to_string(index) + ": images are not " + std::to_string(c.width) +
@@ -168,10 +170,37 @@ PreparedFrame System::ExtractFeatures(size_t index, double timestamp, const cv::
   // The grey image is made once: feature extraction and the consistency check share it. The
   // frame takes the colour image as well, for its features' colours (map.ply).
   const cv::Mat gray = given_gray.empty() ? GrayImage(bgr) : given_gray;
-  PreparedFrame prepared{
-      Frame(index, timestamp, bgr, depth, geometry_, extractor_, gray), {}, 0, gray, depth};
+  PreparedFrame prepared{Frame(index, timestamp, bgr, depth, geometry_, extractor_, gray,
+                               ExtractionAreasOf(index, dynamic_labels)),
+                         {},
+                         0,
+                         gray,
+                         depth};
   prepared.features_ms = MsSince(start);
   return prepared;
+}
+
+ExtractionAreas System::ExtractionAreasOf(size_t index, const cv::Mat& dynamic_labels) const {
+  ExtractionAreas areas;
+  if (dynamic_labels.empty() || !options_.orb.budget_on_static) return areas;
+  CheckDynamicLabels(index, dynamic_labels);
+  areas.extra = dynamic_labels != 0;
+  const int r = options_.orb.budget_margin_px;
+  cv::Mat near_dynamic = areas.extra;
+  if (r > 0) {
+    cv::dilate(areas.extra, near_dynamic,
+               cv::getStructuringElement(cv::MORPH_ELLIPSE, {2 * r + 1, 2 * r + 1}));
+  }
+  areas.budget = near_dynamic == 0;
+  return areas;
+}
+
+void System::CheckDynamicLabels(size_t index, const cv::Mat& dynamic_labels) const {
+  const CameraOptions& c = geometry_->camera.options();
+  if (dynamic_labels.size() != cv::Size(c.width, c.height) || dynamic_labels.type() != CV_8UC1) {
+    throw Error("frame " + std::to_string(index) +
+                ": the dynamic label image is not 8-bit single-channel of the frame's size");
+  }
 }
 
 void System::AddDynamicInputs(PreparedFrame* prepared, const cv::Mat& dynamic_labels,
@@ -180,11 +209,7 @@ void System::AddDynamicInputs(PreparedFrame* prepared, const cv::Mat& dynamic_la
   const size_t index = prepared->frame.index;
   const cv::Size size = prepared->gray.size();
   const auto start = std::chrono::steady_clock::now();
-  if (!dynamic_labels.empty() &&
-      (dynamic_labels.size() != size || dynamic_labels.type() != CV_8UC1)) {
-    throw Error("frame " + std::to_string(index) +
-                ": the dynamic label image is not 8-bit single-channel of the frame's size");
-  }
+  if (!dynamic_labels.empty()) CheckDynamicLabels(index, dynamic_labels);
   if (!segments.empty() &&
       (segments.type() != CV_32SC1 || segments.cols > size.width || segments.rows > size.height)) {
     throw Error("frame " + std::to_string(index) +

@@ -137,12 +137,14 @@ class System {
                         const std::vector<uint8_t>& locked_segments = {}) const;
   // Prepare in two steps, so that feature extraction can run beside a dynamic front end that
   // makes the labels and segments: Prepare(...) is exactly ExtractFeatures(index, timestamp,
-  // bgr, depth) followed by AddDynamicInputs(&prepared, dynamic_labels, segments,
-  // locked_segments). Each validates its own inputs.
+  // bgr, depth, {}, dynamic_labels) followed by AddDynamicInputs(&prepared, dynamic_labels,
+  // segments, locked_segments). Each validates its own inputs.
   // `gray`: `bgr` in grey where the caller has made it already (a front end that works on grey
-  // too shares it); made here otherwise.
+  // too shares it); made here otherwise. `dynamic_labels` (CV_8U, non-zero: dynamic, or empty):
+  // with orb.budget_on_static the features are spread over the static part (OrbOptions).
   PreparedFrame ExtractFeatures(size_t index, double timestamp, const cv::Mat& bgr,
-                                const cv::Mat& depth, const cv::Mat& gray = cv::Mat()) const;
+                                const cv::Mat& depth, const cv::Mat& gray = cv::Mat(),
+                                const cv::Mat& dynamic_labels = cv::Mat()) const;
   // `unmapped` (CV_8U, image size, or empty): features that make no map point (Frame::
   // SetUnmappable; the front end's SdoResult::unmapped).
   void AddDynamicInputs(PreparedFrame* prepared, const cv::Mat& dynamic_labels,
@@ -179,6 +181,11 @@ class System {
   // mapping.max_tracking_lead frames before frame `index`. Adds the wait to
   // timing->lock_wait_ms and sets timing->mapping_lag_frames.
   void WaitForMapping(size_t index, FrameTiming* timing);
+  // Where frame `index`'s features go, from its dynamic labels (OrbOptions::budget_on_static;
+  // none without labels).
+  ExtractionAreas ExtractionAreasOf(size_t index, const cv::Mat& dynamic_labels) const;
+  // Error naming frame `index` unless `dynamic_labels` is CV_8U at the camera's size.
+  void CheckDynamicLabels(size_t index, const cv::Mat& dynamic_labels) const;
 
   SlamOptions options_;
   OrbExtractor extractor_;
