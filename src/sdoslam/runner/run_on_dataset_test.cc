@@ -957,7 +957,8 @@ TEST(PipelineStages, PreparingAheadGivesTheInlineRunsTrajectoryBitForBit) {
     ASSERT_GT(
         *std::max_element(inline_run.dynamic_features.begin(), inline_run.dynamic_features.end()),
         0);  // the people were seen, so the front end's order matters
-    for (size_t capacity : {1u, 3u}) {
+    // The queue's capacities with the default budget; the task beside the front end once.
+    for (size_t capacity : budget_on_static ? std::vector<size_t>{1, 3} : std::vector<size_t>{1}) {
       const Outcome ahead = run_with(true, capacity, budget_on_static);
       EXPECT_EQ(ahead.dynamic_features, inline_run.dynamic_features)
           << "capacity " << capacity << ", budget_on_static " << budget_on_static;
