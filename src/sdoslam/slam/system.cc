@@ -185,6 +185,9 @@ ExtractionAreas System::ExtractionAreasOf(size_t index, const cv::Mat& dynamic_l
   if (dynamic_labels.empty() || !options_.orb.budget_on_static) return areas;
   CheckDynamicLabels(index, dynamic_labels);
   areas.extra = dynamic_labels != 0;
+  // Nothing dynamic: one budget over the image, as without labels (and without sorting the
+  // corners twice).
+  if (cv::countNonZero(areas.extra) == 0) return {};
   const int r = options_.orb.budget_margin_px;
   cv::Mat near_dynamic = areas.extra;
   if (r > 0) {
