@@ -988,3 +988,57 @@ TEST(SlamOptionsTest, CheckMessagesNameTheConfigPath) {
 
 }  // namespace
 }  // namespace sdoslam
+
+namespace sdoslam {
+namespace {
+
+// With dynamic labels, Prepare spreads the budget over the static part, keeps it budget_margin_px
+// clear of the dynamic part, and keeps the dynamic part's features, labelled; with the setting
+// off, one budget covers the image. Labels of the wrong size are named.
+TEST(SlamInput, TheFeatureBudgetGoesToWhatTheLabelsCallStatic) {
+  const CameraOptions camera = synth::SyntheticCamera();
+  const cv::Mat bgr = BlurredNoise(camera, 13);
+  const cv::Mat depth(bgr.size(), CV_32F, cv::Scalar(2.0f));
+  const int edge = camera.width / 2;
+  cv::Mat labels(bgr.size(), CV_8U, cv::Scalar(0));
+  labels.colRange(edge, camera.width).setTo(2);
+  struct Count {
+    int static_features = 0, dynamic_features = 0, near_edge = 0;
+  };
+  auto count = [&](const SlamOptions& options) {
+    const System slam(camera, options);
+    const PreparedFrame prepared = slam.Prepare(0, 0.0, bgr, depth, labels);
+    Count c;
+    for (size_t i = 0; i < prepared.frame.size(); ++i) {
+      const float x = prepared.frame.keypoints[i].pt.x;
+      if (prepared.frame.IsStatic(static_cast<int>(i))) {
+        ++c.static_features;
+        c.near_edge += x > edge - options.orb.budget_margin_px;
+      } else {
+        ++c.dynamic_features;
+      }
+    }
+    return c;
+  };
+  SlamOptions off;
+  off.orb.budget_on_static = false;
+  const Count whole = count(off), budget = count(SlamOptions{});
+  const int num_features = SlamOptions{}.orb.num_features;
+  EXPECT_LT(whole.static_features, 0.6 * num_features);
+  EXPECT_GT(whole.near_edge, 0);
+  EXPECT_GT(budget.static_features, 0.9 * num_features);
+  EXPECT_EQ(budget.near_edge, 0);
+  EXPECT_EQ(budget.dynamic_features, whole.dynamic_features);
+  const System slam(camera, SlamOptions{});
+  const cv::Mat small(camera.height / 2, camera.width / 2, CV_8U, cv::Scalar(0));
+  try {
+    slam.Prepare(7, 0.0, bgr, depth, small);
+    ADD_FAILURE() << "labels of half the size were taken";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("frame 7"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("dynamic label image"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace sdoslam
