@@ -189,9 +189,7 @@ ExtractionAreas System::ExtractionAreasOf(size_t index, const cv::Mat& dynamic_l
   // corners twice).
   if (cv::countNonZero(areas.extra) == 0) return {};
   const int r = options_.orb.budget_margin_px;
-  // A matrix of its own: dilating in place would grow `extra` too, and its keypoints in the
-  // margin would come back as static features.
-  cv::Mat near_dynamic = r > 0 ? cv::Mat() : areas.extra;
+  cv::Mat near_dynamic = areas.extra;
   if (r > 0) {
     cv::dilate(areas.extra, near_dynamic,
                cv::getStructuringElement(cv::MORPH_ELLIPSE, {2 * r + 1, 2 * r + 1}));
