@@ -16,12 +16,14 @@ struct OrbOptions {
   int min_fast_threshold = 7;  // ...and this one where the first finds nothing (low texture)
   int detection_cell = 35;     // pixels: FAST runs per cell so that every cell gets a chance
   // Where a dynamic front end (or a caller's mask) has labelled the frame, num_features are
-  // spread over the static part alone, `budget_margin_px` away from anything dynamic; the
-  // features on the dynamic part, as one budget over the whole image would place them, come on
-  // top. A textured mover otherwise takes the budget: a box covering a quarter of blurred,
-  // fast-turning real frames (fr1_rpy) drew half of the 1000 features, and the static rest was
-  // too thin to track. The margin keeps corners off the mover's outline, where a corner of the
-  // static side is made by the mover's edge and moves with it (docs/method.md).
+  // spread over the static part alone, `budget_margin_px` away from anything dynamic; the rest
+  // of the image (the dynamic part and that ring around it) keeps the keypoints one budget over
+  // the whole image would place there, on top. A textured mover otherwise takes the budget: a
+  // box covering a quarter of blurred, fast-turning real frames (fr1_rpy) drew half of the 1000
+  // features, and the static rest was too thin to track. The margin keeps the budget off the
+  // mover's outline, where a corner of the static side is made by the mover's edge and moves
+  // with it; the ring's own keypoints stay static features, as without the budget
+  // (docs/method.md).
   bool budget_on_static = true;
   int budget_margin_px = 8;
   // Throws Error naming the setting by its config path, `path` its section's ("orb.").

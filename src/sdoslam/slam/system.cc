@@ -184,16 +184,21 @@ ExtractionAreas System::ExtractionAreasOf(size_t index, const cv::Mat& dynamic_l
   ExtractionAreas areas;
   if (dynamic_labels.empty() || !options_.orb.budget_on_static) return areas;
   CheckDynamicLabels(index, dynamic_labels);
-  areas.extra = dynamic_labels != 0;
+  // The budget goes to the static part budget_margin_px clear of anything dynamic; the rest of
+  // the image (the dynamic part and the ring around it) keeps what a whole-image budget puts
+  // there. The ring's keypoints are static features, as without the budget: dropping them cost
+  // the blurred, fast-turning real frames (fr1_rpy) 5 mm, where the front end's false selections
+  // are many and the ring around them is the static scene (docs/method.md, Features).
+  cv::Mat near_dynamic = dynamic_labels != 0;
   // Nothing dynamic: one budget over the image, as without labels (and without sorting the
   // corners twice).
-  if (cv::countNonZero(areas.extra) == 0) return {};
+  if (cv::countNonZero(near_dynamic) == 0) return areas;
   const int r = options_.orb.budget_margin_px;
-  cv::Mat near_dynamic = areas.extra;
   if (r > 0) {
-    cv::dilate(areas.extra, near_dynamic,
+    cv::dilate(near_dynamic, near_dynamic,
                cv::getStructuringElement(cv::MORPH_ELLIPSE, {2 * r + 1, 2 * r + 1}));
   }
+  areas.extra = near_dynamic;
   areas.budget = near_dynamic == 0;
   return areas;
 }

@@ -988,3 +988,69 @@ TEST(SlamOptionsTest, CheckMessagesNameTheConfigPath) {
 
 }  // namespace
 }  // namespace sdoslam
+
+namespace sdoslam {
+namespace {
+
+// With dynamic labels, Prepare spreads the budget over the static part budget_margin_px clear of
+// the dynamic part; the ring and the dynamic part keep what a whole-image budget puts there (the
+// ring's features static, the dynamic part's labelled). Labels of the wrong size are named.
+TEST(SlamInput, TheFeatureBudgetGoesToWhatTheLabelsCallStatic) {
+  const CameraOptions camera = synth::SyntheticCamera();
+  const cv::Mat bgr = BlurredNoise(camera, 13);
+  const cv::Mat depth(bgr.size(), CV_32F, cv::Scalar(2.0f));
+  const int edge = camera.width / 2;
+  const int margin = SlamOptions{}.orb.budget_margin_px;
+  cv::Mat labels(bgr.size(), CV_8U, cv::Scalar(0));
+  labels.colRange(edge, camera.width).setTo(2);
+  struct Features {
+    int clear = 0;  // static, clear of the ring
+    std::vector<std::pair<float, float>> ring, dynamic;
+    int ring_dynamic = 0;
+  };
+  auto extract = [&](const SlamOptions& options) {
+    const System slam(camera, options);
+    const PreparedFrame prepared = slam.Prepare(0, 0.0, bgr, depth, labels);
+    Features f;
+    for (size_t i = 0; i < prepared.frame.size(); ++i) {
+      const cv::Point2f p = prepared.frame.keypoints[i].pt;
+      const bool is_static = prepared.frame.IsStatic(static_cast<int>(i));
+      // A pixel's width either side of the ring's edges is left out: which side a keypoint at
+      // a fractional position falls on is the extractor's rounding, not the rule.
+      if (p.x < edge - margin - 1) {
+        f.clear += is_static;
+      } else if (p.x > edge - margin + 1 && p.x < edge - 1) {
+        f.ring.emplace_back(p.x, p.y);
+        f.ring_dynamic += !is_static;
+      } else if (p.x > edge + 1) {
+        if (!is_static) f.dynamic.emplace_back(p.x, p.y);
+      }
+    }
+    std::sort(f.ring.begin(), f.ring.end());
+    std::sort(f.dynamic.begin(), f.dynamic.end());
+    return f;
+  };
+  SlamOptions off;
+  off.orb.budget_on_static = false;
+  const Features whole = extract(off), budget = extract(SlamOptions{});
+  const int num_features = SlamOptions{}.orb.num_features;
+  EXPECT_LT(whole.clear, 0.6 * num_features);
+  EXPECT_GT(budget.clear, 0.9 * num_features);
+  EXPECT_FALSE(whole.ring.empty());
+  EXPECT_EQ(budget.ring, whole.ring);
+  EXPECT_EQ(budget.ring_dynamic, 0);
+  EXPECT_GT(whole.dynamic.size(), 0.3 * num_features);
+  EXPECT_EQ(budget.dynamic, whole.dynamic);
+  const System slam(camera, SlamOptions{});
+  const cv::Mat small(camera.height / 2, camera.width / 2, CV_8U, cv::Scalar(0));
+  try {
+    slam.Prepare(7, 0.0, bgr, depth, small);
+    ADD_FAILURE() << "labels of half the size were taken";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("frame 7"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("dynamic label image"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace sdoslam
