@@ -267,6 +267,7 @@ const std::vector<CsvColumn<FrameRow>>& FrameColumns() {
       {"latency_ms", [](R f) { return Ms(f.out.latency_ms); }},
       {"lock_wait_ms", [](R f) { return Ms(f.out.timing.lock_wait_ms); }},
       {"relocalized", [](R f) { return Flag(f.out.tracking.relocalized); }},
+      {"restarted", [](R f) { return Flag(f.out.tracking.restarted); }},
       {"queued_ms", [](R f) { return Ms(f.out.queued_ms); }},
       {"local_map_matches", [](R f) { return Plain(f.out.tracking.local_map_matches); }},
       {"reference_matches", [](R f) { return Plain(f.out.tracking.reference_matches); }},
@@ -680,6 +681,10 @@ RunSummary RunOnDataset(const RunOptions& options) {
         r.feature_labels.begin(), r.feature_labels.end(), [](uint8_t l) { return l != 0; }));
     AppendCsvRow(FrameColumns(), FrameRow{i, out, dynamic_features}, &log);
     if (r.relocalized) summary.relocalizations.push_back(i);
+    if (r.restarted) {
+      spdlog::warn("frame {}: lost while the map was young; the map starts again from this frame",
+                   i);
+    }
     if (!labels.empty() && mask_evaluator) {
       mask_evaluator->AddFrame(rgb_paths[i], labels, r.feature_points, r.feature_labels);
     }

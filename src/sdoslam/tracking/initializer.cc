@@ -2,11 +2,16 @@
 
 namespace sdoslam {
 
-KeyFrame* InitializeMap(Map* map, const TrackerOptions& options, Frame& frame) {
+bool CanStartMap(const TrackerOptions& options, const Frame& frame) {
   int with_depth = 0;
   for (size_t i = 0; i < frame.size(); ++i) with_depth += frame.HasDepth(static_cast<int>(i));
-  if (with_depth < options.min_initial_depth_features) return nullptr;
-  frame.T_camera_world = Eigen::Isometry3d::Identity();  // the first camera defines the world
+  return with_depth >= options.min_initial_depth_features;
+}
+
+KeyFrame* InitializeMap(Map* map, const TrackerOptions& options, Frame& frame,
+                        const Eigen::Isometry3d& T_camera_world) {
+  if (!CanStartMap(options, frame)) return nullptr;
+  frame.T_camera_world = T_camera_world;
   KeyFrame* kf = map->AddKeyFrame(frame);
   for (size_t i = 0; i < kf->frame.size(); ++i) {
     if (!kf->frame.IsStaticWithDepth(static_cast<int>(i))) continue;

@@ -32,6 +32,8 @@ class SceneFlowChecker {
   // remembered poses move with it, or the check would see the whole room move.
   void CorrectPoses(const Eigen::Isometry3d& change);
   size_t remembered() const { return history_.size(); }
+  // Forgets the remembered frames: the map started again, and their poses are in the old one.
+  void Forget() { history_.clear(); }
 
   // Whether CheckSceneFlow can judge frame `index`: a tracked frame before it is remembered
   // (none after a loss of frame_gap frames or more).

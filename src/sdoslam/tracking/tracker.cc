@@ -56,26 +56,88 @@ void Tracker::FollowMapChanges() {
   }
 }
 
+KeyFrame* Tracker::StartMap(Frame& frame, const Eigen::Isometry3d& T_camera_world,
+                            KeyFrame** new_keyframe, TrackingResult* result) {
+  KeyFrame* first = InitializeMap(map_, options_, frame, T_camera_world);
+  if (first == nullptr) return nullptr;
+  reference_ = first;
+  last_keyframe_frame_ = frame.index;
+  state_ = TrackingState::kOk;
+  result->keyframe = true;
+  *new_keyframe = first;
+  result->inliers = first->TrackedPoints(1);
+  last_frame_ = std::make_unique<Frame>(first->frame);
+  return first;
+}
+
 TrackingResult Tracker::Initialize(Frame& frame, KeyFrame** new_keyframe,
                                    const ConsistencyInput* consistency, TrackingResult result) {
-  KeyFrame* first = InitializeMap(map_, options_, frame);
-  if (first != nullptr) {
-    reference_ = first;
-    last_keyframe_frame_ = frame.index;
-    state_ = TrackingState::kOk;
-    result.keyframe = true;
-    *new_keyframe = first;
-    result.inliers = first->TrackedPoints(1);
-  }
+  StartMap(frame, Eigen::Isometry3d::Identity(), new_keyframe, &result);
   result.state = state_;
   trajectory_.push_back({frame.timestamp, state_ == TrackingState::kOk ? reference_ : nullptr,
                          Eigen::Isometry3d::Identity()});
-  if (state_ == TrackingState::kOk) last_frame_ = std::make_unique<Frame>(first->frame);
   if (consistency != nullptr) {
     checker_.RememberFrame(frame.index, state_ == TrackingState::kOk, Eigen::Isometry3d::Identity(),
                            *consistency);
   }
   return result;
+}
+
+bool Tracker::Restart(Frame& frame, KeyFrame** new_keyframe, const ConsistencyInput* consistency,
+                      TrackingResult* result) {
+  const bool young = options_.restart_below_keyframes > 0 &&
+                     map_->GoodKeyFrames() <= static_cast<size_t>(options_.restart_below_keyframes);
+  std::unique_ptr<Frame> candidate = std::move(restart_candidate_);
+  if (!young || !CanStartMap(options_, frame)) return false;
+  // The frame before was lost too and could be the new map's first: the map starts again when
+  // this one follows it (a view that holds still from one frame to the next; noise, a flash or
+  // a shaken lens does not).
+  const Eigen::Isometry3d carried_on =
+      (has_velocity_ ? velocity_ : Eigen::Isometry3d::Identity()) * last_frame_->T_camera_world;
+  if (candidate == nullptr || candidate->index + 1 != frame.index ||
+      !FollowsCandidate(frame, *candidate)) {
+    // Straight from tracking, or on from such a candidate: after frames the camera could not see
+    // (a covered lens) the motion model no longer knows where it is, and relocalization is the
+    // way back.
+    if (state_ == TrackingState::kOk || candidate != nullptr) {
+      restart_candidate_ = std::make_unique<Frame>(frame);
+      restart_candidate_->T_camera_world = candidate ? candidate->T_camera_world : carried_on;
+      std::fill(restart_candidate_->map_points.begin(), restart_candidate_->map_points.end(),
+                nullptr);
+    }
+    return false;
+  }
+  std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
+  if (StartMap(frame, frame.T_camera_world, new_keyframe, result) == nullptr) return false;
+  velocity_ = frame.T_camera_world * candidate->T_camera_world.inverse();
+  has_velocity_ = true;
+  result->restarted = true;
+  result->state = state_;
+  result->T_camera_world = frame.T_camera_world;
+  trajectory_.push_back({frame.timestamp, reference_, Eigen::Isometry3d::Identity()});
+  // The frames remembered for the scene flow have their poses in the map that was left.
+  checker_.Forget();
+  if (consistency != nullptr)
+    checker_.RememberFrame(frame.index, true, frame.T_camera_world, *consistency);
+  return true;
+}
+
+bool Tracker::FollowsCandidate(Frame& frame, const Frame& candidate) {
+  // The motion model's search against the candidate's points from depth (MakeTemporaryPoints
+  // and TrackWithMotionModel work on the last frame).
+  std::unique_ptr<Frame> last = std::move(last_frame_);
+  last_frame_ = std::make_unique<Frame>(candidate);
+  MakeTemporaryPoints();
+  frame.T_camera_world = candidate.T_camera_world;
+  bool follows = TrackWithMotionModel(frame);
+  int inliers = 0;
+  for (const MapPoint* p : frame.map_points) inliers += p != nullptr;
+  follows = follows && inliers >= options_.min_inliers;
+  std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
+  std::fill(frame.outlier.begin(), frame.outlier.end(), false);
+  temporary_points_.clear();
+  last_frame_ = std::move(last);
+  return follows;
 }
 
 bool Tracker::TrackPose(Frame& frame, TrackingResult* result) {
@@ -174,6 +236,11 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
     return Initialize(frame, new_keyframe, consistency, std::move(result));
 
   bool ok = TrackPose(frame, &result);
+  if (ok) {
+    restart_candidate_.reset();
+  } else if (Restart(frame, new_keyframe, consistency, &result)) {
+    return result;
+  }
   // Whether this frame's features were judged for scene flow (or need not be).
   const bool judged = consistency == nullptr || checker_.CanJudge(frame.index);
   if (ok && consistency != nullptr) {

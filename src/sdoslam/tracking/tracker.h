@@ -81,6 +81,19 @@ class Tracker {
   // frame goes).
   TrackingResult Initialize(Frame& frame, KeyFrame** new_keyframe,
                             const ConsistencyInput* consistency, TrackingResult result);
+  // A keyframe of `frame` at `T_camera_world` with its points (InitializeMap), made the
+  // reference and the last frame; null when the frame has too few features with depth.
+  KeyFrame* StartMap(Frame& frame, const Eigen::Isometry3d& T_camera_world, KeyFrame** new_keyframe,
+                     TrackingResult* result);
+  // A lost frame with a young map (restart_below_keyframes): the map starts again from it when
+  // it follows the frame before, lost straight from tracking and kept at the motion model's
+  // prediction (restart_candidate_); otherwise it may become that candidate. Returns whether
+  // the map started again.
+  bool Restart(Frame& frame, KeyFrame** new_keyframe, const ConsistencyInput* consistency,
+               TrackingResult* result);
+  // Whether `frame` tracks against `candidate` by the motion model (at least min_inliers);
+  // leaves the frame at the pose found, unmatched.
+  bool FollowsCandidate(Frame& frame, const Frame& candidate);
   // The frame's pose: by the motion model or the reference keyframe (or relocalization when
   // lost), then against the local map. False when the frame could not be tracked.
   bool TrackPose(Frame& frame, TrackingResult* result);
@@ -116,6 +129,7 @@ class Tracker {
   Relocalizer relocalizer_;
   TrackingState state_ = TrackingState::kNotInitialized;
   std::unique_ptr<Frame> last_frame_;
+  std::unique_ptr<Frame> restart_candidate_;  // see Restart
   KeyFrame* reference_ = nullptr;
   size_t last_keyframe_frame_ = 0;  // frame index of the last keyframe
   bool has_velocity_ = false;

@@ -35,6 +35,7 @@ void TrackerOptions::Check(const std::string& path) const {
     throw Error(path + "relocalization_place_candidates must be >= 0");
   if (relocalization_prior_frames < 0)
     throw Error(path + "relocalization_prior_frames must be >= 0");
+  if (restart_below_keyframes < 0) throw Error(path + "restart_below_keyframes must be >= 0");
   if (!(relocalization_radius_factor >= 1))
     throw Error(path + "relocalization_radius_factor must be >= 1");
   if (keyframes_min_static_samples < 0)

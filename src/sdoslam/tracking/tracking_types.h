@@ -57,6 +57,16 @@ struct TrackerOptions {
   // almost nothing (the synthetic loop). 0: off.
   int relocalization_prior_frames = 30;
   double relocalization_radius_factor = 4.0;
+  // While the map has at most this many keyframes, a camera lost straight from tracking (not
+  // after frames it could not see) on a frame with min_initial_depth_features features with
+  // depth starts the map again from the next frame, when that one is lost too and follows it
+  // (Tracker::Restart): the trajectory goes on from the motion model's prediction for the lost
+  // frame. A young map is mostly what the first frames took in before the front end could tell
+  // movers (the first frame has no flow): with movers filling half of fast-turning real frames
+  // (the mixed play over fr1_rpy) it held too little of the room, tracking was lost on the 8th
+  // frame, and relocalizing against it failed for the other 292. ORB-SLAM2 resets such a map
+  // and its trajectory. 0: off.
+  int restart_below_keyframes = 5;
   // With the consistency check on, a frame it cannot judge (relocalized after a loss of
   // consistency.frame_gap frames or more: no tracked frame to measure scene flow from) is never
   // made a keyframe, as the map would take in whatever the front end missed on the mover that
@@ -93,6 +103,7 @@ struct TrackerOptions {
     visit("relocalization_candidates", o.relocalization_candidates);
     visit("relocalization_place_candidates", o.relocalization_place_candidates);
     visit("relocalization_prior_frames", o.relocalization_prior_frames);
+    visit("restart_below_keyframes", o.restart_below_keyframes);
     visit("relocalization_radius_factor", o.relocalization_radius_factor);
     visit("keyframes_only_from_judged_frames", o.keyframes_only_from_judged_frames);
     visit("keyframes_min_static_samples", o.keyframes_min_static_samples);
@@ -130,7 +141,8 @@ struct TrackingResult {
   int reference_matches = -1;
   int close_tracked = -1, close_untracked = -1;
   bool keyframe = false;
-  bool relocalized = false;                          // tracked again after lost frames
+  bool relocalized = false;  // tracked again after lost frames
+  bool restarted = false;    // the map started again from this frame (restart_below_keyframes)
   size_t keyframes_alive = 0, map_points_alive = 0;  // the map's size after this frame
   Eigen::Isometry3d T_camera_world = Eigen::Isometry3d::Identity();
   // Every feature's detected position, its front-end label (0 = static) and whether it ended
