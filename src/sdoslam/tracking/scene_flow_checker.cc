@@ -13,12 +13,14 @@ SceneFlowChecker::SceneFlowChecker(Map* map, const SceneFlowOptions& options)
 
 void SceneFlowChecker::RememberFrame(size_t index, bool tracked,
                                      const Eigen::Isometry3d& T_camera_world,
-                                     const ConsistencyInput& input) {
+                                     const ConsistencyInput& input, const KeyFrame* reference) {
   // Copied (the pyramid holds its own copy of the image): the caller may reuse its buffers for
   // the next frame.
   CurrentPyramid(index, input.gray);
-  history_.push_back(
-      {index, std::move(current_pyramid_), input.depth.clone(), T_camera_world, tracked});
+  history_.push_back({index, std::move(current_pyramid_), input.depth.clone(), T_camera_world,
+                      tracked, reference,
+                      reference != nullptr ? T_camera_world * reference->pose().inverse()
+                                           : Eigen::Isometry3d::Identity()});
   current_pyramid_.clear();
   while (static_cast<int>(history_.size()) > options_.frame_gap) history_.pop_front();
 }
@@ -38,8 +40,11 @@ const SceneFlowChecker::PastFrame* SceneFlowChecker::TrackedPastFrame(size_t ind
   return nullptr;
 }
 
-void SceneFlowChecker::CorrectPoses(const Eigen::Isometry3d& change) {
-  for (PastFrame& past : history_) past.T_camera_world = past.T_camera_world * change;
+void SceneFlowChecker::FollowMap() {
+  for (PastFrame& past : history_) {
+    if (past.reference != nullptr)
+      past.T_camera_world = ComposeWithReference(past.reference, past.T_camera_reference);
+  }
 }
 
 namespace {

@@ -25,12 +25,14 @@ class SceneFlowChecker {
 
   // Keeps frame `index`'s images (cloned: the caller may reuse its buffers) and pose, and
   // whether it was tracked, for the scene flow of the frames to come; the last frame_gap frames
-  // are kept.
+  // are kept. A frame tracked against `reference` keeps its pose relative to that keyframe, and
+  // FollowMap moves it where the keyframe has moved since; without one the pose stays as given.
   void RememberFrame(size_t index, bool tracked, const Eigen::Isometry3d& T_camera_world,
-                     const ConsistencyInput& input);
-  // Loop closing moved the map by `change` (each pose becomes T_camera_world * change): the
-  // remembered poses move with it, or the check would see the whole room move.
-  void CorrectPoses(const Eigen::Isometry3d& change);
+                     const ConsistencyInput& input, const KeyFrame* reference = nullptr);
+  // Local BA and loop closing have moved keyframes: the remembered poses follow their reference
+  // keyframes (culled ones through their parents), or the check would see the whole room move
+  // by as much.
+  void FollowMap();
   size_t remembered() const { return history_.size(); }
   // Forgets the remembered frames: the map started again, and their poses are in the old one.
   void Forget() { history_.clear(); }
@@ -69,6 +71,8 @@ class SceneFlowChecker {
     cv::Mat depth;
     Eigen::Isometry3d T_camera_world;
     bool tracked;
+    const KeyFrame* reference;  // null: the pose stays as remembered
+    Eigen::Isometry3d T_camera_reference;
   };
 
   // A correspondence of the check: each end as a ray in the world frame and the depths it may

@@ -231,35 +231,57 @@ TEST_F(SceneFlowCheckerTest, NeedsATrackedFrameBeforeAndForgetsAllButTheLastFram
   EXPECT_EQ(frame.label, before.label);
 }
 
-TEST_F(SceneFlowCheckerTest, RememberedPosesMoveWithTheMap) {
+TEST_F(SceneFlowCheckerTest, RememberedPosesFollowTheirKeyframeWhenTheMapMoves) {
   Render(0.4);
-  // The past frames were tracked in a map that loop closing has since moved by 0.2 m.
-  Eigen::Isometry3d shift = synth::Pose({0.2, 0.0, 0.0});
+  // The past frames were tracked against a keyframe 0.2 m off its true place; since then local
+  // BA (or loop closing) has moved it there, and the checked frame is tracked in the moved map.
+  const Eigen::Isometry3d shift = synth::Pose({0.2, 0.0, 0.0});
+  Frame first(views_[0].index, kNow - kGap * kFrameTime, views_[0].bgr, views_[0].depth, geometry_,
+              *extractor_);
+  first.T_camera_world = views_[0].T_camera_world * shift;
+  KeyFrame* reference = map_.AddKeyFrame(first);
+  auto remember = [&](SceneFlowChecker* checker) {
+    for (size_t k = 0; k + 1 < views_.size(); ++k)
+      checker->RememberFrame(views_[k].index, true, views_[k].T_camera_world * shift,
+                             Input(views_[k]), reference);
+  };
+  SceneFlowChecker stale(&map_, SceneFlowOptions{}), following(&map_, SceneFlowOptions{});
+  remember(&stale);
+  remember(&following);
+  reference->frame.T_camera_world = views_[0].T_camera_world;
   {
-    SceneFlowChecker stale(&map_, SceneFlowOptions{});
-    RememberPast(&stale, shift);
     Frame frame = MatchedFrame();
     std::vector<size_t> box, room;
     Split(frame, &box, &room);
     TrackingResult result;
     stale.CheckSceneFlow(frame, Input(views_.back()), KeepPose(), no_lock_, &result);
-    // Seen from the old poses the whole room moves: the check drops its result, moves the pose
-    // to the old map's, or calls the room dynamic.
+    // Seen from the poses as tracked the whole room moves: the check drops its result, moves
+    // the pose to the old map's, or calls the room dynamic.
     EXPECT_TRUE(result.check_reverted || result.check_replaced ||
                 ShareJudgedDynamic(frame, room) > 0.5);
   }
-  SceneFlowChecker corrected(&map_, SceneFlowOptions{});
-  RememberPast(&corrected, shift);
-  corrected.CorrectPoses(shift.inverse());
+  following.FollowMap();
   Frame frame = MatchedFrame();
   std::vector<size_t> box, room;
   Split(frame, &box, &room);
   TrackingResult result;
-  corrected.CheckSceneFlow(frame, Input(views_.back()), KeepPose(), no_lock_, &result);
+  following.CheckSceneFlow(frame, Input(views_.back()), KeepPose(), no_lock_, &result);
   EXPECT_FALSE(result.check_reverted);
   EXPECT_FALSE(result.check_replaced);
   EXPECT_GE(ShareJudgedDynamic(frame, box), 0.9);
   EXPECT_LE(ShareJudgedDynamic(frame, room), 0.03);
+  // A culled reference hands its frames on through its parent.
+  KeyFrame* parent = map_.AddKeyFrame(first);
+  parent->frame.T_camera_world = synth::Pose({0.0, 0.1, 0.0}) * views_[0].T_camera_world;
+  reference->bad = true;
+  reference->parent = parent;
+  reference->T_camera_parent = views_[0].T_camera_world * parent->pose().inverse();
+  following.FollowMap();
+  Frame again = MatchedFrame();
+  TrackingResult after_culling;
+  following.CheckSceneFlow(again, Input(views_.back()), KeepPose(), no_lock_, &after_culling);
+  EXPECT_FALSE(after_culling.check_replaced);
+  EXPECT_LE(ShareJudgedDynamic(again, room), 0.03);
 }
 
 TEST_F(SceneFlowCheckerTest, CheckLandmarksCullsTheMovedAndTheSeenThroughAndClearsTheMatched) {

@@ -45,14 +45,16 @@ void Tracker::FollowMapChanges() {
   // Local mapping may have culled the reference keyframe: its features are gone, its parent
   // (never culled) stands in for it.
   while (reference_ != nullptr && reference_->bad) reference_ = reference_->parent;
+  // The frames remembered for the scene flow sit where their keyframes are now: local BA and
+  // loop closing move keyframes, and a pose kept from tracking time would make the check see
+  // the room move by as much (real fr1_rpy: local BA moves a fresh keyframe by centimetres).
+  checker_.FollowMap();
   if (map_->correction_epoch() != correction_epoch_) {
-    // Loop closing moved the map: the last frame and the scene-flow history move with the
-    // reference keyframe, or the motion model would predict in the old map and the check would
-    // see the whole room move.
+    // Loop closing moved the map: the last frame moves with the reference keyframe, or the
+    // motion model would predict in the old map.
     const Eigen::Isometry3d change = map_->CorrectionSince(reference_, correction_epoch_);
     correction_epoch_ = map_->correction_epoch();
     if (last_frame_ != nullptr) last_frame_->T_camera_world = last_frame_->T_camera_world * change;
-    checker_.CorrectPoses(change);
   }
 }
 
@@ -78,7 +80,7 @@ TrackingResult Tracker::Initialize(Frame& frame, KeyFrame** new_keyframe,
                          Eigen::Isometry3d::Identity()});
   if (consistency != nullptr) {
     checker_.RememberFrame(frame.index, state_ == TrackingState::kOk, Eigen::Isometry3d::Identity(),
-                           *consistency);
+                           *consistency, state_ == TrackingState::kOk ? reference_ : nullptr);
   }
   return result;
 }
@@ -118,7 +120,7 @@ bool Tracker::Restart(Frame& frame, KeyFrame** new_keyframe, const ConsistencyIn
   // The frames remembered for the scene flow have their poses in the map that was left.
   checker_.Forget();
   if (consistency != nullptr)
-    checker_.RememberFrame(frame.index, true, frame.T_camera_world, *consistency);
+    checker_.RememberFrame(frame.index, true, frame.T_camera_world, *consistency, reference_);
   return true;
 }
 
@@ -278,7 +280,8 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
     trajectory_.push_back({frame.timestamp, nullptr, Eigen::Isometry3d::Identity()});
   }
   if (consistency != nullptr)
-    checker_.RememberFrame(frame.index, ok, frame.T_camera_world, *consistency);
+    checker_.RememberFrame(frame.index, ok, frame.T_camera_world, *consistency,
+                           ok ? reference_ : nullptr);
   return result;
 }
 
