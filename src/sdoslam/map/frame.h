@@ -63,6 +63,9 @@ class Frame {
   // Gives feature i a dynamic label after tracking has started on the frame (the consistency
   // check): drops its map point, and FeaturesInArea leaves it out.
   void MarkDynamic(int i, uint8_t dynamic_label);
+  // Returns feature i to static (the check found a feature the front end took out consistent
+  // with the static world): FeaturesInArea includes it again.
+  void MarkStatic(int i) { label[static_cast<size_t>(i)] = 0; }
   // Marks the features on `mask` (CV_8U, image size, non-zero: seen moving lately, see
   // SdoClassifierOptions::unmapped_frames) as making no map points; tracking still matches them
   // to the map. An empty mask clears the marks.

@@ -31,6 +31,7 @@ RunMode ParseRunMode(const std::string& name) {
 }
 
 static_assert(kSceneFlow == kSceneFlowLabel, "the front end and tracking name label 3 alike");
+static_assert(kMovingUnknown == kMotionSelectedLabel, "... and label 2 alike");
 
 Pipeline::Pipeline(const PipelineOptions& options) : options_(options) {
   if (options_.mode == RunMode::kSdo) {
@@ -106,6 +107,11 @@ StagedFrame Pipeline::Prepare(RgbdFrame input, const cv::Mat& dynamic_mask) {
   }
   slam_->AddDynamicInputs(&*features, staged.labels, segments, staged.locked_segments,
                           staged.sdo ? staged.sdo->unmapped : cv::Mat());
+  // The check may return the front end's motion-selected features to static, never a caller's
+  // mask (ground truth).
+  if (features->consistency)
+    features->consistency->motion_selected_recheckable =
+        front_end_ != nullptr && dynamic_mask.empty();
   staged.slam.emplace(std::move(*features));
   staged.input = std::move(input);
   staged.prepared = std::chrono::steady_clock::now();

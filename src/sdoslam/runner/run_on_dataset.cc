@@ -273,6 +273,7 @@ const std::vector<CsvColumn<FrameRow>>& FrameColumns() {
       {"reference_matches", [](R f) { return Plain(f.out.tracking.reference_matches); }},
       {"close_tracked", [](R f) { return Plain(f.out.tracking.close_tracked); }},
       {"close_untracked", [](R f) { return Plain(f.out.tracking.close_untracked); }},
+      {"check_readmitted", [](R f) { return Plain(f.out.tracking.check_readmitted); }},
   };
   return columns;
 }

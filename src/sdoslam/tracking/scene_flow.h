@@ -96,6 +96,15 @@ struct SceneFlowOptions {
   // still turn dynamic as a whole when the front end misses it (docs/results.md, carried_box).
   // The classifier's own cap (classifier.max_segment_area) is 0.5.
   double max_segment_area = 0.4;
+  // The paper's quasi-dynamic features (§III-C, E): features the front end took out because their
+  // segment was selected by motion boundaries (label 2, not a known movable class) stay out of
+  // tracking's pose but are judged like the others, and those the check finds static return to
+  // static: they make map points and count for keyframes (they are not matched to the map again
+  // within the frame; doing so closed loops on fewer runs of real fr1_rpy). A flow gradient also
+  // marks depth gaps and, under blur and fast rotation, DIS's failures: on real fr1_rpy frames a
+  // quarter to half of the image became boundary and hundreds of static features a frame left
+  // the map. false: the front end's selection is final.
+  bool recheck_motion_selected = true;
   // Before classifying, the rough pose is replaced by the motion that explains the largest
   // share of the image (static_motion.h), when that explains clearly more.
   StaticMotionOptions static_motion;
@@ -130,6 +139,7 @@ struct SceneFlowOptions {
     visit("seen_through_max_share", o.seen_through_max_share);
     visit("depth_window_radius", o.depth_window_radius);
     visit("max_segment_area", o.max_segment_area);
+    visit("recheck_motion_selected", o.recheck_motion_selected);
     visit("static_motion", o.static_motion);
   }
 };

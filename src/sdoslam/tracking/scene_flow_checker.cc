@@ -153,8 +153,14 @@ SceneFlowChecker::Correspondences SceneFlowChecker::FollowFeaturesBack(
   std::vector<cv::Point2f> tracked_points, guesses;
   std::vector<size_t> tracked_slot;
   const Eigen::Isometry3d T_past_camera = past.T_camera_world * frame.T_camera_world.inverse();
+  // The front end's motion-selected features are judged again (recheck_motion_selected); only
+  // with depth, as without it they cannot be measured and would stay out anyway.
+  const bool recheck = o.recheck_motion_selected && input.motion_selected_recheckable;
   for (size_t i = 0; i < frame.size(); ++i) {
-    if (!frame.IsStatic(static_cast<int>(i))) continue;
+    const bool rechecked =
+        recheck && frame.label[i] == kMotionSelectedLabel && frame.HasDepth(static_cast<int>(i));
+    if (!frame.IsStatic(static_cast<int>(i)) && !rechecked) continue;
+    c.rechecked.push_back(rechecked);
     if (frame.HasDepth(static_cast<int>(i))) {
       tracked_slot.push_back(c.candidates.size());
       tracked_points.push_back(frame.keypoints[i].pt);
@@ -404,8 +410,16 @@ std::vector<MapPoint*> SceneFlowChecker::CheckSceneFlow(Frame& frame, const Cons
   }
   std::vector<MapPoint*> judged_dynamic;
   for (size_t k = 0; k < dynamic.size(); ++k) {
-    if (!dynamic[k]) continue;
     const int i = features.candidates[k];
+    if (features.rechecked[k]) {
+      // Stays out unless measured and found static.
+      if (!dynamic[k] && features.measured[k]) {
+        frame.MarkStatic(i);
+        ++result->check_readmitted;
+      }
+      continue;
+    }
+    if (!dynamic[k]) continue;
     MapPoint* p = matched[static_cast<size_t>(i)];
     if (p != nullptr && !p->bad && !p->observations.empty()) judged_dynamic.push_back(p);
     frame.MarkDynamic(i, kSceneFlowLabel);

@@ -46,8 +46,10 @@ class SceneFlowChecker {
   // (nothing is done without one). Features judged dynamic are labelled kSceneFlowLabel and
   // unmatched, and the pose is re-estimated by `refine_pose` without them. When too few inliers
   // would be left, or the check would overturn the map's established landmarks, the frame keeps
-  // its matches and tracking's pose (result->check_reverted). Fills the check's fields and
-  // `inliers` of `result`. Returns the map points of the features it judged dynamic.
+  // its matches and tracking's pose (result->check_reverted). Features the front end selected by
+  // motion (kMotionSelectedLabel, where input.motion_selected_recheckable) are judged too, and
+  // those found static are relabelled static (result->check_readmitted). Fills the check's fields
+  // and `inliers` of `result`. Returns the map points of the features it judged dynamic.
   // `map_lock`: Lucas–Kanade, the grid corners and the static world's motion run without it.
   std::vector<MapPoint*> CheckSceneFlow(Frame& frame, const ConsistencyInput& input,
                                         const RefinePose& refine_pose, MapLockReleaser& map_lock,
@@ -81,9 +83,11 @@ class SceneFlowChecker {
     Eigen::Vector3d past_origin, past_direction, current_direction;
     std::vector<float> past_depths, current_depths;
   };
-  // The features still taken as static (the candidates), followed back into a past frame.
+  // The features still taken as static and the motion-selected ones judged again (the
+  // candidates), followed back into a past frame.
   struct Correspondences {
     std::vector<int> candidates;         // feature indices
+    std::vector<uint8_t> rechecked;      // per candidate: motion-selected, judged again
     std::vector<uint8_t> measured;       // per candidate: followed back, with depth at both ends
     std::vector<Ends> ends;              // per candidate, where measured
     std::vector<int> segment;            // per candidate: its segment (SegmentsAt)

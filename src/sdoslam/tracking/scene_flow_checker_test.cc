@@ -209,6 +209,74 @@ TEST_F(SceneFlowCheckerTest, AStandingBoxIsStatic) {
   EXPECT_TRUE(result.check_segments.empty());
 }
 
+// The front end's motion selection is a hypothesis the check tests (the paper's quasi-dynamic
+// features): features it took out (label 2) on the sliding box stay out, those on a patch of the
+// room and on a box that stands return to static. Never a caller's mask (oracle), nor with the
+// option off.
+TEST_F(SceneFlowCheckerTest, MotionSelectedFeaturesReturnWhenTheyAreStatic) {
+  for (const double box_speed : {0.4, 0.0}) {
+    views_.clear();
+    Render(box_speed);
+    for (const int variant : {0, 1, 2}) {  // rechecked; a caller's mask; the option off
+      SCOPED_TRACE(::testing::Message() << "box speed " << box_speed << ", variant " << variant);
+      SceneFlowOptions options;
+      options.recheck_motion_selected = variant != 2;
+      SceneFlowChecker checker(&map_, options);
+      RememberPast(&checker);
+      Frame frame = MatchedFrame();
+      std::vector<size_t> box, room, patch;
+      Split(frame, &box, &room);
+      const int patch_columns = views_.back().instance.cols / 4;
+      for (size_t i : room) {
+        if (frame.keypoints[i].pt.x < patch_columns - 4) patch.push_back(i);
+      }
+      ASSERT_GE(box.size(), 20u);
+      ASSERT_GE(patch.size(), 20u);
+      for (size_t i : box) frame.MarkDynamic(static_cast<int>(i), kMotionSelectedLabel);
+      for (size_t i : patch) frame.MarkDynamic(static_cast<int>(i), kMotionSelectedLabel);
+      ConsistencyInput input = Input(views_.back());
+      input.motion_selected_recheckable = variant != 1;
+
+      TrackingResult result;
+      checker.CheckSceneFlow(frame, input, KeepPose(), no_lock_, &result);
+
+      ASSERT_FALSE(result.check_reverted);
+      auto share_static = [&](const std::vector<size_t>& features) {
+        int returned = 0;
+        for (size_t i : features) {
+          EXPECT_TRUE(frame.label[i] == 0 || frame.label[i] == kMotionSelectedLabel) << i;
+          returned += frame.IsStatic(static_cast<int>(i));
+        }
+        return static_cast<double>(returned) / static_cast<double>(features.size());
+      };
+      const double box_static = share_static(box), patch_static = share_static(patch);
+      if (variant != 0) {
+        EXPECT_EQ(box_static, 0.0);
+        EXPECT_EQ(patch_static, 0.0);
+        EXPECT_EQ(result.check_readmitted, 0);
+        continue;
+      }
+      EXPECT_GE(patch_static, 0.8);
+      if (box_speed > 0) {
+        EXPECT_LE(box_static, 0.05);
+      } else {
+        EXPECT_GE(box_static, 0.8);
+      }
+      int returned = 0;
+      for (size_t i = 0; i < frame.size(); ++i) {
+        returned += (std::find(box.begin(), box.end(), i) != box.end() ||
+                     std::find(patch.begin(), patch.end(), i) != patch.end()) &&
+                    frame.IsStatic(static_cast<int>(i));
+      }
+      EXPECT_EQ(result.check_readmitted, returned);
+      // What returns makes points again; it had no part in the pose.
+      for (size_t i : patch) {
+        if (frame.IsStatic(static_cast<int>(i))) EXPECT_EQ(frame.map_points[i], nullptr);
+      }
+    }
+  }
+}
+
 TEST_F(SceneFlowCheckerTest, NeedsATrackedFrameBeforeAndForgetsAllButTheLastFrameGap) {
   Render(0.4);
   SceneFlowOptions options;

@@ -115,6 +115,9 @@ struct TrackerOptions {
 // Label the consistency check gives the features it judges dynamic (the front end's labels are
 // 1 and 2).
 inline constexpr uint8_t kSceneFlowLabel = 3;
+// The front end's label for features of segments selected by motion (DynamicLabel::
+// kMovingUnknown): the check judges them again (SceneFlowOptions::recheck_motion_selected).
+inline constexpr uint8_t kMotionSelectedLabel = 2;
 
 // What the consistency check needs besides the frame's features: this frame's images and the
 // front end's segmentation.
@@ -123,6 +126,10 @@ struct ConsistencyInput {
   cv::Mat depth;     // CV_32F metres, registered to the colour image (0 = none)
   cv::Mat segments;  // CV_32S segment per pixel (−1: none) at any size of the image's aspect
   std::vector<uint8_t> locked_segments;  // per segment: dynamic whatever its scene flow
+  // Whether features labelled kMotionSelectedLabel came from the front end's motion selection
+  // (the check may return them to static), not from a caller's mask (ground truth in oracle
+  // mode: final).
+  bool motion_selected_recheckable = false;
 };
 
 // Per-frame outcome, for the run log.
@@ -159,6 +166,8 @@ struct TrackingResult {
   bool check_reverted = false;
   int check_measured = 0;
   int check_dynamic = 0;
+  // Features the front end selected by motion that the check found static and returned.
+  int check_readmitted = 0;
   int culled_points = 0;
   // Static motion (static_motion.h): grid samples the rough pose explains, samples the chosen
   // pose explains, and whether the widest motion replaced the rough pose.
