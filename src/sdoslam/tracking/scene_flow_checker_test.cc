@@ -271,7 +271,9 @@ TEST_F(SceneFlowCheckerTest, MotionSelectedFeaturesReturnWhenTheyAreStatic) {
       EXPECT_EQ(result.check_readmitted, returned);
       // What returns makes points again; it had no part in the pose.
       for (size_t i : patch) {
-        if (frame.IsStatic(static_cast<int>(i))) EXPECT_EQ(frame.map_points[i], nullptr);
+        if (frame.IsStatic(static_cast<int>(i))) {
+          EXPECT_EQ(frame.map_points[i], nullptr);
+        }
       }
     }
   }
