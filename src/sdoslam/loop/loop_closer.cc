@@ -18,6 +18,7 @@ void LoopClosingOptions::Check(const std::string& path) const {
   if (min_keyframes_between < 1) throw Error(path + "min_keyframes_between must be >= 1");
   if (consistent_detections < 0) throw Error(path + "consistent_detections must be >= 0");
   if (min_matches < 3) throw Error(path + "min_matches must be >= 3");
+  if (verify_neighbours < 0) throw Error(path + "verify_neighbours must be >= 0");
   if (min_inliers < 3) throw Error(path + "min_inliers must be >= 3");
   if (min_projected_inliers < min_inliers)
     throw Error(path + "min_projected_inliers must be >= " + path + "min_inliers");
@@ -219,12 +220,31 @@ std::vector<KeyFrame*> LoopCloser::ConsistentCandidates(
   return accepted;
 }
 
+int LoopCloser::MatchPlace(KeyFrame* keyframe, KeyFrame* candidate, Frame* probe) const {
+  std::fill(probe->map_points.begin(), probe->map_points.end(), nullptr);
+  std::set<uint64_t> matched_points;
+  int matches = 0;
+  Frame search = keyframe->frame;
+  for (KeyFrame* kf : WithStrongestNeighbours(candidate, options_.verify_neighbours)) {
+    const FeatureVector* words = places_->Features(kf->id);
+    if (kf->bad || words == nullptr) continue;
+    std::fill(search.map_points.begin(), search.map_points.end(), nullptr);
+    // Vocabulary-guided (both keyframes are in the places).
+    SearchByDescriptor(search, *kf, words, places_->Features(keyframe->id));
+    for (size_t i = 0; i < search.size(); ++i) {
+      MapPoint* p = search.map_points[i];
+      if (p == nullptr || probe->map_points[i] != nullptr || !matched_points.insert(p->id).second)
+        continue;
+      probe->map_points[i] = p;
+      ++matches;
+    }
+  }
+  return matches;
+}
+
 bool LoopCloser::Verify(KeyFrame* keyframe, KeyFrame* candidate, Verified* verified) {
   Frame probe = keyframe->frame;
-  std::fill(probe.map_points.begin(), probe.map_points.end(), nullptr);
-  // Vocabulary-guided (both keyframes are in the places).
-  verified->matches = SearchByDescriptor(probe, *candidate, places_->Features(candidate->id),
-                                         places_->Features(keyframe->id));
+  verified->matches = MatchPlace(keyframe, candidate, &probe);
   spdlog::debug("loop: verify keyframe {} against {}: {} matches", keyframe->id, candidate->id,
                 verified->matches);
   if (verified->matches < options_.min_matches) return false;

@@ -16,6 +16,9 @@ TEST(LoopClosingOptionsTest, RejectsImpossibleSettings) {
   o = LoopClosingOptions{};
   o.min_matches = 2;
   EXPECT_THROW(o.Check(), Error);
+  o = LoopClosingOptions{};
+  o.verify_neighbours = -1;
+  EXPECT_THROW(o.Check(), Error);
 }
 
 }  // namespace

@@ -359,11 +359,11 @@ TEST(Pipeline, SdoOnTheRealStaticDeskIsAsGoodAsConventional) {
 }
 
 // Real hand-held footage turning fast with blur (TUM fr1_rpy, 300 frames; ORB-SLAM2 25.1-27.6
-// mm), with configs/tum_fr1.yaml, sequential. Conventional: every frame tracked, ATE within
-// ORB-SLAM2's (21.5 mm measured), the keyframes alone too, and the keyframes the view needs as it
-// turns away: 61 made. With ORB-SLAM2's 100 close points the keyframes came 10-20 frames apart
-// (26 made) and the map fell behind the view: 35 mm; with the 1x local-map window, 62 mm.
-// sdo, where nothing moves, within a few millimetres of it (25.8 measured).
+// mm), with configs/tum_fr1.yaml, sequential. Both modes: every frame tracked, the loop back
+// to the start closed, ATE within ORB-SLAM2's (conventional 21.4 mm measured, sdo 22.9).
+// Conventional: the keyframes alone within it too, and the keyframes the view needs as it
+// turns away. With ORB-SLAM2's 100 close points the keyframes came 10-20 frames apart (26
+// made) and the map fell behind the view: 35 mm; with the 1x local-map window, 62 mm.
 TEST(Pipeline, FastRotationOnRealFootageStaysAccurate) {
   const auto data = testing::SharedDir() / "data" / "tum_fr1_rpy_300";
   if (!std::filesystem::is_directory(data)) GTEST_SKIP() << data << " absent";
@@ -379,6 +379,14 @@ TEST(Pipeline, FastRotationOnRealFootageStaysAccurate) {
     ASSERT_TRUE(s.evaluation.has_value());
     ASSERT_TRUE(s.keyframe_evaluation.has_value());
     EXPECT_EQ(s.tracked, 300u) << ToString(mode);
+    // The camera turns back to where it started within the first 4 s: a loop onto the first
+    // second's frames. Matched against the loop keyframe alone (loop_closing.verify_neighbours:
+    // 0), conventional found none at these settings, only one late in the clip.
+    EXPECT_TRUE(std::any_of(s.loops.begin(), s.loops.end(),
+                            [](const LoopRecord& r) {
+                              return r.loop_frame_index < 30 && r.frame_index < 120;
+                            }))
+        << ToString(mode) << ": no loop back to the start";
     ate[mode == RunMode::kSdo] = s.evaluation->ate.translation.rmse;
     std::cout << "fr1_rpy_300 " << ToString(mode) << ": ATE " << ate[mode == RunMode::kSdo]
               << ", keyframes " << s.keyframe_evaluation->ate.translation.rmse << ", "
@@ -389,7 +397,7 @@ TEST(Pipeline, FastRotationOnRealFootageStaysAccurate) {
     }
   }
   EXPECT_LE(ate[0], 0.025);
-  EXPECT_LE(ate[1], 0.030);
+  EXPECT_LE(ate[1], 0.025);
 }
 
 // How a run's map.ply agrees with the images: each point is projected into the frames given
