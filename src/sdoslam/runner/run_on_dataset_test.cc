@@ -382,10 +382,9 @@ TEST(Pipeline, FastRotationOnRealFootageStaysAccurate) {
     // The camera turns back to where it started within the first 4 s: a loop onto the first
     // second's frames. Matched against the loop keyframe alone (loop_closing.verify_neighbours:
     // 0), conventional found none at these settings, only one late in the clip.
-    EXPECT_TRUE(std::any_of(s.loops.begin(), s.loops.end(),
-                            [](const LoopRecord& r) {
-                              return r.loop_frame_index < 30 && r.frame_index < 120;
-                            }))
+    EXPECT_TRUE(std::any_of(
+        s.loops.begin(), s.loops.end(),
+        [](const LoopRecord& r) { return r.loop_frame_index < 30 && r.frame_index < 120; }))
         << ToString(mode) << ": no loop back to the start";
     ate[mode == RunMode::kSdo] = s.evaluation->ate.translation.rmse;
     std::cout << "fr1_rpy_300 " << ToString(mode) << ": ATE " << ate[mode == RunMode::kSdo]
