@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <limits>
 
 #include "sdoslam/core/error.h"
@@ -19,6 +20,8 @@ void LoopClosingOptions::Check(const std::string& path) const {
   if (consistent_detections < 0) throw Error(path + "consistent_detections must be >= 0");
   if (min_matches < 3) throw Error(path + "min_matches must be >= 3");
   if (verify_neighbours < 0) throw Error(path + "verify_neighbours must be >= 0");
+  if (!(min_correction_m >= 0)) throw Error(path + "min_correction_m must be >= 0");
+  if (!(min_correction_deg >= 0)) throw Error(path + "min_correction_deg must be >= 0");
   if (min_inliers < 3) throw Error(path + "min_inliers must be >= 3");
   if (min_projected_inliers < min_inliers)
     throw Error(path + "min_projected_inliers must be >= " + path + "min_inliers");
@@ -96,6 +99,11 @@ LoopResult LoopCloser::Process(KeyFrame* keyframe, std::mutex* map_mutex,
     const bool verified_ok = Verify(keyframe, candidate, &verified);
     result.record.verify_ms += MsSince(verify_start);
     if (!verified_ok) continue;
+    if (!CorrectsEnough(options_, keyframe->pose(), verified.T_camera_world)) {
+      spdlog::debug("loop: keyframe {} agrees with {} already: not closed", keyframe->id,
+                    candidate->id);
+      continue;
+    }
     Correct(keyframe, verified, &result.record);
     if (options_.global_bundle_adjustment)
       GlobalBundleAdjustment(&lock, frame_done, between_frames, &result.record);
@@ -314,6 +322,17 @@ bool LoopCloser::Verify(KeyFrame* keyframe, KeyFrame* candidate, Verified* verif
   verified->T_camera_world = probe.T_camera_world;
   verified->matched = probe.map_points;
   return true;
+}
+
+bool CorrectsEnough(const LoopClosingOptions& options, const Eigen::Isometry3d& T_camera_world,
+                    const Eigen::Isometry3d& corrected_T_camera_world) {
+  const double metres =
+      (T_camera_world.inverse().translation() - corrected_T_camera_world.inverse().translation())
+          .norm();
+  const Eigen::AngleAxisd turn(corrected_T_camera_world.linear() *
+                               T_camera_world.linear().transpose());
+  return metres >= options.min_correction_m ||
+         turn.angle() * 180.0 / M_PI >= options.min_correction_deg;
 }
 
 void LoopCloser::Correct(KeyFrame* keyframe, const Verified& verified, LoopRecord* record) {

@@ -41,6 +41,13 @@ struct LoopClosingOptions {
   int verify_neighbours = 5;
   int min_inliers = 20;
   int min_projected_inliers = 40;
+  // A verified loop that would move the keyframe by less than both of these is not closed: the
+  // map already agrees there (tracking or relocalization found the old points; a mover hid the
+  // links), and closing it would block detection for min_keyframes_between keyframes, the real
+  // loop after it among them. On the fr1_rpy plays with movers, 38 of 68 loops closed moved
+  // the keyframe by under 1 cm.
+  double min_correction_m = 0.01;
+  double min_correction_deg = 1.0;
   // Essential graph: covisibility edges of at least this weight (shared points) join the
   // spanning tree and the loop edges in the pose graph (ORB-SLAM2: 100).
   int essential_min_weight = 100;
@@ -80,6 +87,8 @@ struct LoopClosingOptions {
     visit("verify_neighbours", o.verify_neighbours);
     visit("min_inliers", o.min_inliers);
     visit("min_projected_inliers", o.min_projected_inliers);
+    visit("min_correction_m", o.min_correction_m);
+    visit("min_correction_deg", o.min_correction_deg);
     visit("essential_min_weight", o.essential_min_weight);
     visit("essential_max_covisible", o.essential_max_covisible);
     visit("fuse_keyframes", o.fuse_keyframes);
@@ -110,6 +119,12 @@ struct LoopRecord {
   bool global_ba_skipped = false;    // more observations than max_global_ba_observations
   bool global_ba_discarded = false;  // threaded: the map was corrected again meanwhile
 };
+
+// Whether a loop that moves a keyframe's pose from T_camera_world to corrected_T_camera_world
+// corrects enough to be closed: its centre by min_correction_m or its orientation by
+// min_correction_deg.
+bool CorrectsEnough(const LoopClosingOptions& options, const Eigen::Isometry3d& T_camera_world,
+                    const Eigen::Isometry3d& corrected_T_camera_world);
 
 // What the loop closer did with one keyframe.
 struct LoopResult {
