@@ -239,7 +239,28 @@ void Map::UpdateConnections(KeyFrame* kf) {
     if (kf->covisibility.count(other->id) == 0) sort_best(other);
   }
   sort_best(kf);
-  if (kf->parent == nullptr && kf->id != 0 && best_count > 0) SetParent(kf, by_id[best_id]);
+  if (kf->parent != nullptr || kf->id == 0) return;
+  // The parent is the most covisible keyframe that does not descend from this one. A keyframe
+  // still without a parent here is the first of a map started again (its first points were its
+  // own): its children are the keyframes it shares most with, and taking one of them as its
+  // parent would close a cycle that culling then turns into a keyframe that is its own parent
+  // (ComposeWithReference never ended on such a run).
+  KeyFrame* parent = nullptr;
+  int parent_count = 0;
+  for (const auto& [other_id, count] : counts) {
+    if (count > parent_count && !DescendsFrom(by_id[other_id], kf)) {
+      parent_count = count;
+      parent = by_id[other_id];
+    }
+  }
+  if (parent != nullptr) SetParent(kf, parent);
+}
+
+bool DescendsFrom(const KeyFrame* keyframe, const KeyFrame* ancestor) {
+  for (const KeyFrame* k = keyframe; k != nullptr; k = k->parent) {
+    if (k == ancestor) return true;
+  }
+  return false;
 }
 
 void Map::SetParent(KeyFrame* kf, KeyFrame* parent) {

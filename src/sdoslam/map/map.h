@@ -77,6 +77,9 @@ std::vector<KeyFrame*> WithStrongestNeighbours(KeyFrame* kf, int count);
 Eigen::Isometry3d ComposeWithReference(const KeyFrame* reference,
                                        const Eigen::Isometry3d& T_camera_reference);
 
+// Whether `ancestor` is `keyframe` or one of its ancestors in the spanning tree.
+bool DescendsFrom(const KeyFrame* keyframe, const KeyFrame* ancestor);
+
 // Owns keyframes and map points; ids increase from 0 and are never reused.
 // Culled keyframes are flagged bad and kept, with their features released (frames tracked
 // against them still need their place in the spanning tree): a few hundred bytes each.
@@ -96,7 +99,7 @@ class Map {
   void Replace(MapPoint* point, MapPoint* by);
   void SetBad(MapPoint* point);
   // Recomputes the keyframe's covisibility edges (both sides) and, for a keyframe without a
-  // parent, chooses the most covisible one as its parent.
+  // parent, chooses the most covisible one that does not descend from it as its parent.
   void UpdateConnections(KeyFrame* keyframe);
   // Culls a keyframe: its observations go, its children (culled ones included) hang from its
   // parent, and its features are released. The first keyframe and a keyframe without a parent

@@ -268,6 +268,40 @@ TEST_F(MapTest, CullingAKeyFrameErasesItsObservationsAndReleasesItsFeatures) {
   EXPECT_FALSE(map_.SetBad(k[1])) << "culled twice";
 }
 
+// A map started again after an early loss: its first keyframe has no parent and shares its
+// points only with the keyframes made after it, its children. Updating its connections later
+// (local mapping does, after fusing) must not make one of them its parent: the cycle that
+// closed turned, once the two were culled, into a keyframe that is its own parent, and placing
+// a frame tracked against it never ended.
+TEST_F(MapTest, TheFirstKeyFrameOfAMapStartedAgainTakesNoChildAsItsParent) {
+  KeyFrame* old_root = AddKeyFrame(0);
+  KeyFrame* old_child = AddKeyFrame(1);
+  Share(old_root, old_child, 0, 40);
+  map_.UpdateConnections(old_child);
+  KeyFrame* new_root = AddKeyFrame(2);  // nothing shared with the old map
+  KeyFrame* child = AddKeyFrame(3);
+  KeyFrame* grandchild = AddKeyFrame(4);
+  Share(new_root, child, 40, 40);
+  map_.UpdateConnections(child);
+  Share(child, grandchild, 80, 40);
+  Share(new_root, grandchild, 120, 60);  // the root's strongest link is its grandchild
+  map_.UpdateConnections(grandchild);
+  ASSERT_EQ(child->parent, new_root);
+  ASSERT_EQ(grandchild->parent, new_root);
+  map_.UpdateConnections(new_root);
+  EXPECT_EQ(new_root->parent, nullptr) << "a descendant became the root's parent";
+  EXPECT_TRUE(DescendsFrom(grandchild, new_root));
+  EXPECT_FALSE(DescendsFrom(new_root, grandchild));
+  // Culling what can be culled leaves every reference reachable from a good keyframe.
+  const Eigen::Isometry3d T_camera_reference = Eigen::Isometry3d::Identity();
+  const Eigen::Isometry3d world = ComposeWithReference(child, T_camera_reference);
+  EXPECT_FALSE(map_.SetBad(new_root)) << "a map's first keyframe holds its gauge";
+  EXPECT_TRUE(map_.SetBad(child));
+  EXPECT_TRUE(Near(ComposeWithReference(child, T_camera_reference), world));
+  ExpectConsistent();
+  EXPECT_EQ(old_child->parent, old_root);
+}
+
 // The frames of a run are stored relative to their reference keyframe. After any culling
 // order, each must compose to the world pose it was tracked at, and follow its surviving
 // ancestor rigidly when that ancestor is refined.
