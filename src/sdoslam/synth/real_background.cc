@@ -207,6 +207,26 @@ SceneObject BiasedStillBox(const Placement& p) {
   return box;
 }
 
+// A crate about the size of a chair's seat standing still on the desk, 0.55 of the way to the
+// scene and left of centre, for the first 0.35 of the play (long enough to be mapped), then
+// pushed 0.3 m to the right over 0.8 s, turning 15 degrees, and left there: a thing of no known
+// class that was static, moves, and is static again.
+SceneObject PushedBox(const Placement& p) {
+  const double start = 0.35 * p.duration, push = 0.8;
+  const Isometry3d T_world_anchor = p.T_world_anchor;
+  const Vector3d at = OnAxis(p, 0.55, {-0.2, 0, -0.1});
+  auto pose = [=](double t) {
+    // Smooth start and stop: (1 - cos) over the push.
+    const double s = std::clamp((t - start) / push, 0.0, 1.0);
+    const double done = 0.5 * (1 - std::cos(M_PI * s));
+    return T_world_anchor *
+           Pose(at + done * Vector3d(0.3, 0, 0),
+                Eigen::AngleAxisd(done * 15 * M_PI / 180, Vector3d::UnitZ()).toRotationMatrix());
+  };
+  return RigidBox(32, "pushed_box", pose, Vector3d(0.18, 0.15, 0.12), Vector3f(0.6f, 0.45f, 0.7f),
+                  4032u);
+}
+
 void CheckScenarioName(const std::string& name) {
   const auto names = BackgroundScenarioNames();
   if (std::find(names.begin(), names.end(), name) != names.end()) return;
@@ -234,6 +254,8 @@ Scene MakeBackgroundScene(const std::string& name, const Placement& p) {
     scene.objects = {PersonStoppingClose(p)};
   } else if (name == "biased_box") {
     scene.objects = {BiasedStillBox(p)};
+  } else if (name == "pushed_box") {
+    scene.objects = {PushedBox(p)};
   } else {
     CheckScenarioName(name);  // throws, listing the known names
   }
@@ -243,8 +265,9 @@ Scene MakeBackgroundScene(const std::string& name, const Placement& p) {
 }  // namespace
 
 std::vector<std::string> BackgroundScenarioNames() {
-  return {"static", "carried_box",       "swinging_boxes",     "people",
-          "mixed",  "person_fills_view", "person_stops_close", "biased_box"};
+  return {"static",    "carried_box",       "swinging_boxes",     "people",
+          "mixed",     "person_fills_view", "person_stops_close", "biased_box",
+          "pushed_box"};
 }
 
 void BackgroundSynthOptions::Check() const {

@@ -152,6 +152,49 @@ TEST_F(RealBackgroundTest, TheBiasedBoxStandsStillAndReadsFourPercentTooFar) {
   EXPECT_EQ(instance.at<uint16_t>(static_cast<int>(uv.y()), static_cast<int>(uv.x())), 31);
 }
 
+// pushed_box: still for the first 0.35 of the play, pushed 0.3 m aside over 0.8 s, still again.
+// The ground truth calls it dynamic only in the frames it moves into or out of (a thing of no
+// known class).
+TEST_F(RealBackgroundTest, TheCrateStandsIsPushedAsideAndStandsAgain) {
+  const auto out = dir_ / "pushed";
+  BackgroundSynthOptions options = DeskOptions("pushed_box", 0);
+  options.forward_backward = false;
+  WriteBackgroundSequence(options, out);
+  const TumDataset written(out, LoadCameraConfig(out / "camera.yaml"));
+  std::istringstream lines(testing::ReadText(out / "object_poses.txt"));
+  std::string line;
+  std::getline(lines, line);  // header
+  std::vector<Eigen::Vector3d> centre;
+  double stamp, id, x, y, z, qx, qy, qz, qw;
+  while (lines >> stamp >> id >> x >> y >> z >> qx >> qy >> qz >> qw) {
+    EXPECT_EQ(id, 32);
+    centre.emplace_back(x, y, z);
+  }
+  ASSERT_EQ(centre.size(), 50u);
+  // 50 frames, 1.7 s: still up to about frame 20, pushed until about frame 44, then still.
+  EXPECT_LT((centre[15] - centre[0]).norm(), 1e-9);
+  EXPECT_NEAR((centre.back() - centre[0]).norm(), 0.3, 1e-6);
+  EXPECT_LT((centre.back() - centre[46]).norm(), 1e-9);
+  size_t moving_frames = 0;
+  for (size_t k = 0; k < centre.size(); ++k) {
+    const cv::Mat dynamic =
+        cv::imread((out / "dynamic" / written.entries()[k].rgb_path.filename()).string(),
+                   cv::IMREAD_UNCHANGED);
+    const cv::Mat instance =
+        cv::imread((out / "instance" / written.entries()[k].rgb_path.filename()).string(),
+                   cv::IMREAD_UNCHANGED);
+    ASSERT_FALSE(dynamic.empty() || instance.empty());
+    ASSERT_GT(cv::countNonZero(instance == 32), 5000) << "frame " << k << ": the crate in view";
+    // Dynamic in a frame it moves into or out of.
+    const bool moves = (k > 0 && (centre[k] - centre[k - 1]).norm() > 1e-9) ||
+                       (k + 1 < centre.size() && (centre[k + 1] - centre[k]).norm() > 1e-9);
+    moving_frames += moves;
+    EXPECT_EQ(cv::countNonZero(dynamic), moves ? cv::countNonZero(instance == 32) : 0)
+        << "frame " << k;
+  }
+  EXPECT_GE(moving_frames, 20u);
+}
+
 TEST_F(RealBackgroundTest, PeopleAreDetectedAsPersonsAndUnknownScenariosAreErrors) {
   const auto out = dir_ / "people";
   BackgroundSynthOptions options = DeskOptions("people", 30);
