@@ -24,6 +24,26 @@ BackgroundSynthOptions DeskOptions(const std::string& scenario, int frames) {
   return o;
 }
 
+// The rows of a written object_poses.txt (after its header): each object's id and world pose.
+struct ObjectPose {
+  int id;
+  Eigen::Isometry3d T_world_object;
+};
+std::vector<ObjectPose> ReadObjectPoses(const std::filesystem::path& file) {
+  std::istringstream lines(testing::ReadText(file));
+  std::string line;
+  std::getline(lines, line);  // header
+  std::vector<ObjectPose> poses;
+  double stamp, id, x, y, z, qx, qy, qz, qw;
+  while (lines >> stamp >> id >> x >> y >> z >> qx >> qy >> qz >> qw) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = Eigen::Quaterniond(qw, qx, qy, qz).normalized().toRotationMatrix();
+    T.translation() = Eigen::Vector3d(x, y, z);
+    poses.push_back({static_cast<int>(id), T});
+  }
+  return poses;
+}
+
 class RealBackgroundTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -91,13 +111,10 @@ TEST_F(RealBackgroundTest, ObjectsAreZBufferedIntoTheRecordingAlongItsRealTrajec
 
   // The box's depth at the image point of its centre matches its pose: 0.6 m ahead of the camera,
   // give or take the sway.
-  const std::string poses = testing::ReadText(out / "object_poses.txt");
-  std::istringstream lines(poses);
-  std::string line;
-  std::getline(lines, line);  // header
-  double stamp, id, x, y, z, qx, qy, qz, qw;
-  lines >> stamp >> id >> x >> y >> z >> qx >> qy >> qz >> qw;
-  const Eigen::Vector3d centre_camera = gt[0].T_world_camera.inverse() * Eigen::Vector3d(x, y, z);
+  const std::vector<ObjectPose> poses = ReadObjectPoses(out / "object_poses.txt");
+  ASSERT_FALSE(poses.empty());
+  const Eigen::Vector3d centre_camera =
+      gt[0].T_world_camera.inverse() * poses[0].T_world_object.translation();
   EXPECT_NEAR(centre_camera.z(), 0.6, 0.05);
   const Camera camera(options.camera);
   Eigen::Vector2d uv = camera.Distort(camera.Project(centre_camera));
@@ -117,15 +134,10 @@ TEST_F(RealBackgroundTest, TheBiasedBoxStandsStillAndReadsFourPercentTooFar) {
   EXPECT_EQ(summary.dynamic_fraction_max, 0.0);
   const TumDataset written(out, LoadCameraConfig(out / "camera.yaml"));
   const Trajectory gt = ReadTumTrajectory(out / "groundtruth.txt");
-  std::istringstream lines(testing::ReadText(out / "object_poses.txt"));
-  std::string line;
-  std::getline(lines, line);  // header
-  double stamp, id, x, y, z, qx, qy, qz, qw;
-  lines >> stamp >> id >> x >> y >> z >> qx >> qy >> qz >> qw;
-  EXPECT_EQ(id, 31);
-  Eigen::Isometry3d T_world_box = Eigen::Isometry3d::Identity();
-  T_world_box.linear() = Eigen::Quaterniond(qw, qx, qy, qz).normalized().toRotationMatrix();
-  T_world_box.translation() = Eigen::Vector3d(x, y, z);
+  const std::vector<ObjectPose> poses = ReadObjectPoses(out / "object_poses.txt");
+  ASSERT_FALSE(poses.empty());
+  EXPECT_EQ(poses[0].id, 31);
+  const Eigen::Isometry3d T_world_box = poses[0].T_world_object;
   const Eigen::Isometry3d T_box_camera = T_world_box.inverse() * gt[0].T_world_camera;
   const Camera camera(options.camera);
   const Eigen::Vector3d centre_camera = T_box_camera.inverse().translation();
@@ -161,14 +173,10 @@ TEST_F(RealBackgroundTest, TheCrateStandsIsPushedAsideAndStandsAgain) {
   options.forward_backward = false;
   WriteBackgroundSequence(options, out);
   const TumDataset written(out, LoadCameraConfig(out / "camera.yaml"));
-  std::istringstream lines(testing::ReadText(out / "object_poses.txt"));
-  std::string line;
-  std::getline(lines, line);  // header
   std::vector<Eigen::Vector3d> centre;
-  double stamp, id, x, y, z, qx, qy, qz, qw;
-  while (lines >> stamp >> id >> x >> y >> z >> qx >> qy >> qz >> qw) {
-    EXPECT_EQ(id, 32);
-    centre.emplace_back(x, y, z);
+  for (const ObjectPose& pose : ReadObjectPoses(out / "object_poses.txt")) {
+    EXPECT_EQ(pose.id, 32);
+    centre.push_back(pose.T_world_object.translation());
   }
   ASSERT_EQ(centre.size(), 50u);
   // 50 frames, 1.7 s: still up to about frame 20, pushed until about frame 44, then still.
@@ -226,12 +234,9 @@ TEST_F(RealBackgroundTest, APersonWalksUpStandsStillCloseByThenWalksOn) {
   const SequenceSummary summary = WriteBackgroundSequence(options, out);
   ASSERT_EQ(summary.frames, 50);
   const Trajectory gt = ReadTumTrajectory(out / "groundtruth.txt");
-  std::istringstream lines(testing::ReadText(out / "object_poses.txt"));
-  std::string line;
-  std::getline(lines, line);  // header
   std::vector<Eigen::Vector3d> feet;
-  double stamp, id, x, y, z, qx, qy, qz, qw;
-  while (lines >> stamp >> id >> x >> y >> z >> qx >> qy >> qz >> qw) feet.emplace_back(x, y, z);
+  for (const ObjectPose& pose : ReadObjectPoses(out / "object_poses.txt"))
+    feet.push_back(pose.T_world_object.translation());
   ASSERT_EQ(feet.size(), 50u);
   // The stand: the longest run of frames at one pose.
   size_t first = 0, length = 1;
