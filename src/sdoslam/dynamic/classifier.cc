@@ -42,6 +42,7 @@ void SdoClassifierOptions::Check(const std::string& path) const {
   fraction(persistence_overlap, "persistence_overlap");
   fraction(persistence_large_overlap, "persistence_large_overlap");
   fraction(persistence_min_in_front, "persistence_min_in_front");
+  fraction(known_min_in_front, "known_min_in_front");
   fraction(unmapped_min_outline_on_boundary, "unmapped_min_outline_on_boundary");
   if (unmapped_frames < 0 || unmapped_frames > 250)
     throw Error(path + "unmapped_frames must be in [0, 250]");
@@ -105,9 +106,10 @@ std::vector<SegmentStats> MeasureSegments(const cv::Mat& seg, int n, const cv::M
   return stats;
 }
 
-// The pixels (255) of detection `det`'s object: the segments that best match its box (`scale`:
-// from image to segment resolution) and those mostly inside it at its depth, labelled
-// kKnownMovable in `segment_labels`; the whole box when no segment matches it.
+// The pixels (255) of detection `det`'s object: the segment that best matches its box (`scale`:
+// from image to segment resolution) and those mostly inside it at its depth, none of them lying
+// behind its neighbours (known_min_in_front), labelled kKnownMovable in `segment_labels`; the
+// whole box when no segment matches it; nothing when the best match lies behind.
 cv::Mat DetectedObject(const Detection& det, const cv::Mat& seg, int n,
                        const std::vector<SegmentStats>& stats, double scale,
                        const SdoClassifierOptions& options, std::vector<uint8_t>* segment_labels) {
@@ -126,18 +128,29 @@ cv::Mat DetectedObject(const Detection& det, const cv::Mat& seg, int n,
       if (row[x] >= 0) ++inside[static_cast<size_t>(row[x])];
     }
   }
+  // The best match in front of its surroundings; and whether a match at least as good lies
+  // behind them (then the box shows the background, and nothing is labelled).
   int best = -1;
-  double best_iou = options.min_box_iou;
+  bool best_behind = false;
+  double best_iou = options.min_box_iou, best_behind_iou = options.min_box_iou;
+  std::vector<uint8_t> behind(static_cast<size_t>(n), 0);
   for (int s = 0; s < n; ++s) {
     const double in = inside[static_cast<size_t>(s)];
-    const double iou = in / (stats[static_cast<size_t>(s)].area + box.area() - in);
-    if (in > 0 && iou >= best_iou) {
+    if (in <= 0) continue;
+    const SegmentStats& st = stats[static_cast<size_t>(s)];
+    const double iou = in / (st.area + box.area() - in);
+    const int ordered = st.in_front + st.behind;
+    behind[static_cast<size_t>(s)] = ordered >= options.persistence_min_ordered &&
+                                     st.in_front < options.known_min_in_front * ordered;
+    if (behind[static_cast<size_t>(s)]) {
+      if (iou >= best_behind_iou) best_behind_iou = iou, best_behind = true;
+    } else if (iou >= best_iou) {
       best_iou = iou;
       best = s;
     }
   }
   if (best < 0) {
-    member(box).setTo(255);
+    if (!best_behind) member(box).setTo(255);
     return member;
   }
   const float best_depth = stats[static_cast<size_t>(best)].median_depth;
@@ -149,7 +162,8 @@ cv::Mat DetectedObject(const Detection& det, const cv::Mat& seg, int n,
         best_depth <= 0 || st.median_depth <= 0 ||
         std::abs(st.median_depth - best_depth) <=
             std::max(options.same_depth_tolerance * best_depth, options.same_depth_min_m);
-    joins[static_cast<size_t>(s)] = s == best || (mostly_inside && same_depth && st.area > 0);
+    joins[static_cast<size_t>(s)] = s == best || (mostly_inside && same_depth && st.area > 0 &&
+                                                  !behind[static_cast<size_t>(s)]);
     if (joins[static_cast<size_t>(s)]) (*segment_labels)[static_cast<size_t>(s)] = kKnownMovable;
   }
   for (int y = box.y; y < box.br().y; ++y) {

@@ -93,6 +93,31 @@ TEST(SdoClassifier, CloseUpAnArmJoinsItsBodyThoughItsDepthDiffersByMoreThanFifte
   EXPECT_EQ(r.segment_labels[3], kStatic);
 }
 
+// A false detection as large as the image (FastestDet on blurred hand-held frames): its best
+// match is the wall, which lies behind everything it borders. Nothing is labelled, where the
+// wall used to be taken for a person; a person in front inside the same box still is.
+TEST(SdoClassifier, ABoxWhoseBestMatchLiesBehindEverythingLabelsNothing) {
+  Scene s;
+  const std::vector<Detection> whole = {{0, "person", 0.45f, cv::Rect2f(0, 0, 160, 120)}};
+  const SdoResult r = SdoClassifier(ExactOptions())
+                          .Classify(s.segments, whole, cv::Mat(), cv::Mat(), s.depth, {160, 120});
+  EXPECT_EQ(r.segment_labels, (std::vector<uint8_t>{kStatic, kStatic, kStatic}));
+  EXPECT_EQ(Count(r.labels, kKnownMovable), 0);
+  SdoClassifierOptions off = ExactOptions();
+  off.known_min_in_front = 0;
+  EXPECT_EQ(SdoClassifier(off)
+                .Classify(s.segments, whole, cv::Mat(), cv::Mat(), s.depth, {160, 120})
+                .segment_labels[0],
+            kKnownMovable)
+      << "without the rule the wall is the person";
+  // A box around A and the wall left of it: A (in front) is the person, the wall is not.
+  const std::vector<Detection> left = {{0, "person", 0.9f, cv::Rect2f(0, 0, 60, 120)}};
+  const SdoResult a = SdoClassifier(ExactOptions())
+                          .Classify(s.segments, left, cv::Mat(), cv::Mat(), s.depth, {160, 120});
+  EXPECT_EQ(a.segment_labels, (std::vector<uint8_t>{kStatic, kKnownMovable, kStatic}));
+  EXPECT_EQ(Count(a.labels, kKnownMovable), s.a.area());
+}
+
 TEST(SdoClassifier, BoxWithoutAMatchingSegmentIsLabelledItself) {
   Scene s;
   s.segments.labels.setTo(-1);  // a segmenter that found nothing
@@ -293,6 +318,9 @@ TEST(SdoClassifierOptions, RejectsOutOfRangeValues) {
   EXPECT_THROW(o.Check(), Error);
   o = {};
   o.unmapped_min_outline_on_boundary = -0.1;
+  EXPECT_THROW(o.Check(), Error);
+  o = {};
+  o.known_min_in_front = 1.5;
   EXPECT_THROW(o.Check(), Error);
 }
 
