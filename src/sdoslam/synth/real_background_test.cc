@@ -44,6 +44,13 @@ std::vector<ObjectPose> ReadObjectPoses(const std::filesystem::path& file) {
   return poses;
 }
 
+// Frame k's mask from a written sequence's `folder` (instance/ or dynamic/), as written.
+cv::Mat ReadMask(const std::filesystem::path& out, const TumDataset& written,
+                 const std::string& folder, size_t k) {
+  return cv::imread((out / folder / written.entries()[k].rgb_path.filename()).string(),
+                    cv::IMREAD_UNCHANGED);
+}
+
 class RealBackgroundTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -80,12 +87,8 @@ TEST_F(RealBackgroundTest, ObjectsAreZBufferedIntoTheRecordingAlongItsRealTrajec
 
     const RgbdFrame real = recording.Load(played[k]);
     const RgbdFrame made = written.Load(k);
-    const cv::Mat instance =
-        cv::imread((out / "instance" / written.entries()[k].rgb_path.filename()).string(),
-                   cv::IMREAD_UNCHANGED);
-    const cv::Mat dynamic =
-        cv::imread((out / "dynamic" / written.entries()[k].rgb_path.filename()).string(),
-                   cv::IMREAD_UNCHANGED);
+    const cv::Mat instance = ReadMask(out, written, "instance", k);
+    const cv::Mat dynamic = ReadMask(out, written, "dynamic", k);
     ASSERT_EQ(instance.type(), CV_16UC1);
     int object_pixels = 0, nearer = 0, mask_agrees = 0, untouched = 0, background = 0;
     for (int v = 0; v < instance.rows; ++v) {
@@ -159,8 +162,7 @@ TEST_F(RealBackgroundTest, TheBiasedBoxStandsStillAndReadsFourPercentTooFar) {
       written.Load(0).depth.at<float>(static_cast<int>(uv.y()), static_cast<int>(uv.x()));
   // Noise is a few mm at 1 m; the bias is 4 cm.
   EXPECT_NEAR(sensed, 1.04 * enters, 0.012) << enters;
-  const cv::Mat instance = cv::imread(
-      (out / "instance" / written.entries()[0].rgb_path.filename()).string(), cv::IMREAD_UNCHANGED);
+  const cv::Mat instance = ReadMask(out, written, "instance", 0);
   EXPECT_EQ(instance.at<uint16_t>(static_cast<int>(uv.y()), static_cast<int>(uv.x())), 31);
 }
 
@@ -185,12 +187,8 @@ TEST_F(RealBackgroundTest, TheCrateStandsIsPushedAsideAndStandsAgain) {
   EXPECT_LT((centre.back() - centre[46]).norm(), 1e-9);
   size_t moving_frames = 0;
   for (size_t k = 0; k < centre.size(); ++k) {
-    const cv::Mat dynamic =
-        cv::imread((out / "dynamic" / written.entries()[k].rgb_path.filename()).string(),
-                   cv::IMREAD_UNCHANGED);
-    const cv::Mat instance =
-        cv::imread((out / "instance" / written.entries()[k].rgb_path.filename()).string(),
-                   cv::IMREAD_UNCHANGED);
+    const cv::Mat dynamic = ReadMask(out, written, "dynamic", k);
+    const cv::Mat instance = ReadMask(out, written, "instance", k);
     ASSERT_FALSE(dynamic.empty() || instance.empty());
     ASSERT_GT(cv::countNonZero(instance == 32), 5000) << "frame " << k << ": the crate in view";
     // Dynamic in a frame it moves into or out of.
@@ -253,18 +251,14 @@ TEST_F(RealBackgroundTest, APersonWalksUpStandsStillCloseByThenWalksOn) {
 
   const TumDataset written(out, LoadCameraConfig(out / "camera.yaml"));
   const size_t middle = first + length / 2;
-  const cv::Mat instance =
-      cv::imread((out / "instance" / written.entries()[middle].rgb_path.filename()).string(),
-                 cv::IMREAD_UNCHANGED);
+  const cv::Mat instance = ReadMask(out, written, "instance", middle);
   ASSERT_FALSE(instance.empty());
   const cv::Mat person = instance == 4;
   EXPECT_GT(cv::countNonZero(person), 0.4 * instance.total());
   EXPECT_LT(cv::countNonZero(person), 0.8 * instance.total());
   EXPECT_GT(cv::countNonZero(person.row(0)), 50);  // cut off by the top edge
   // A person is dynamic whether it moves or not: the ground truth marks it while it stands.
-  const cv::Mat dynamic =
-      cv::imread((out / "dynamic" / written.entries()[middle].rgb_path.filename()).string(),
-                 cv::IMREAD_UNCHANGED);
+  const cv::Mat dynamic = ReadMask(out, written, "dynamic", middle);
   ASSERT_FALSE(dynamic.empty());
   EXPECT_EQ(cv::countNonZero(person & (dynamic == 255)), cv::countNonZero(person));
   EXPECT_EQ(cv::countNonZero(dynamic), cv::countNonZero(person));
