@@ -26,6 +26,13 @@ float Median(std::vector<float>* v) {
   return *mid;
 }
 
+// Whether a segment lies behind what borders it: the nearer side along less than `min_in_front`
+// of its depth-ordered outline pairs, of which it has at least `min_ordered`.
+bool LiesBehind(const SegmentStats& st, double min_in_front, int min_ordered) {
+  const int ordered = st.in_front + st.behind;
+  return ordered >= min_ordered && st.in_front < min_in_front * ordered;
+}
+
 }  // namespace
 
 void SdoClassifierOptions::Check(const std::string& path) const {
@@ -139,9 +146,8 @@ cv::Mat DetectedObject(const Detection& det, const cv::Mat& seg, int n,
     if (in <= 0) continue;
     const SegmentStats& st = stats[static_cast<size_t>(s)];
     const double iou = in / (st.area + box.area() - in);
-    const int ordered = st.in_front + st.behind;
-    behind[static_cast<size_t>(s)] = ordered >= options.persistence_min_ordered &&
-                                     st.in_front < options.known_min_in_front * ordered;
+    behind[static_cast<size_t>(s)] =
+        LiesBehind(st, options.known_min_in_front, options.persistence_min_ordered);
     if (behind[static_cast<size_t>(s)]) {
       if (iou >= best_behind_iou) best_behind_iou = iou, best_behind = true;
     } else if (iou >= best_iou) {
@@ -236,9 +242,8 @@ void MarkRemembered(const cv::Mat& memory, const cv::Mat& seg,
     const SegmentStats& st = stats[s];
     // The memory stays on the pixels a mover covered; where it has gone, the wall that comes
     // back into view there lies behind whatever borders it, and is not remembered.
-    const int ordered = st.in_front + st.behind;
-    const bool behind = ordered >= options.persistence_min_ordered &&
-                        st.in_front < options.persistence_min_in_front * ordered;
+    const bool behind =
+        LiesBehind(st, options.persistence_min_in_front, options.persistence_min_ordered);
     const bool covered = st.area <= max_area
                              ? remembered[s] >= options.persistence_overlap * st.area
                              : remembered[s] >= options.persistence_large_overlap * st.area;

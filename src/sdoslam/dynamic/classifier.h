@@ -37,7 +37,7 @@ struct SdoClassifierOptions {
   // persistence_min_ordered of them) lies behind its neighbours and is not taken for it, and a
   // box whose best match lies behind labels nothing. On blurred hand-held frames FastestDet
   // reports people in boxes as large as the image; their best match was the room behind
-  // everything, and tracking was lost on most of fr1_rpy_300 (33 of 300 frames tracked; 279
+  // everything, and tracking was lost on most of fr1_rpy_300 (33 of 300 frames tracked; 284
   // with this rule). 0: off.
   double known_min_in_front = 0.2;
 
