@@ -625,6 +625,17 @@ void Evaluate(const Trajectory& gt, RunMode mode, RunSummary* summary) {
   }
 }
 
+// The options a run over `dataset` goes by: the dataset's camera (with intrinsics from the
+// dataset where the config asks for them), and no tracking lead for a live camera, which cannot
+// be made to wait for local mapping (mapping.max_tracking_lead bounds a run that reads its files
+// as fast as it tracks them).
+RunOptions RunOptionsFor(const RunOptions& options, const RgbdDataset& dataset) {
+  RunOptions run = options;
+  run.camera = dataset.camera();
+  if (run.camera_rate) run.slam.mapping.max_tracking_lead = 0;
+  return run;
+}
+
 }  // namespace
 
 RunSummary RunOnDataset(const RunOptions& options) {
@@ -634,11 +645,7 @@ RunSummary RunOnDataset(const RunOptions& options) {
   dataset_options.layout = options.layout;
   dataset_options.tum.associations = options.associations;
   const RgbdDataset dataset(options.dataset, options.camera, dataset_options);
-  RunOptions run = options;
-  run.camera = dataset.camera();  // with intrinsics from the dataset where the config asks
-  // A live camera cannot be made to wait for local mapping: at its rate tracking never does
-  // (mapping.max_tracking_lead bounds a run that reads its files as fast as it tracks them).
-  if (run.camera_rate) run.slam.mapping.max_tracking_lead = 0;
+  const RunOptions run = RunOptionsFor(options, dataset);
   RunSummary summary;
   summary.requested =
       run.max_frames > 0 ? std::min(dataset.size(), run.max_frames) : dataset.size();
