@@ -233,7 +233,8 @@ void AddBenchCommand(CLI::App& app) {
   cmd->add_option("--runs", args->runs, "number of runs (of each row, with --sequences)")
       ->check(CLI::Range(1, 100))
       ->capture_default_str();
-  cmd->add_flag("--threaded", args->threaded, "map in a thread (default: sequential)");
+  cmd->add_flag("--threaded", args->threaded,
+                "read and prepare frames ahead in threads (default: sequential)");
   cmd->add_flag("--camera-rate", args->camera_rate,
                 "read the frames at the camera's rate (camera.fps), as a live camera gives them: "
                 "fps then says whether the system keeps up, latency is a camera's");

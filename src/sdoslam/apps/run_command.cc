@@ -160,8 +160,10 @@ void AddRunCommand(CLI::App& app) {
   given->max_frames =
       cmd->add_option("--max-frames", args->max_frames, "stop after this many frames (0: all)")
           ->check(CLI::NonNegativeNumber);
-  cmd->add_flag("--sequential", args->sequential,
-                "map inline after each keyframe: bit-identical runs (default: a mapping thread)");
+  cmd->add_flag(
+      "--sequential", args->sequential,
+      "one thread for everything (default: frames read and prepared ahead in threads; the same "
+      "trajectory)");
   cmd->add_flag("--camera-rate", args->camera_rate,
                 "read the frames at the camera's rate (camera.fps), as a live camera gives them: "
                 "the latency is then a camera's");

@@ -41,15 +41,23 @@ struct LocalMapperOptions {
   // (docs/results.md, Long runs).
   int max_ba_observations = 8000;
   BundleAdjustmentOptions bundle_adjustment;
-  // Threaded mapping (System): tracking makes no keyframe while this many wait for local mapping.
+  // Threaded runs (System): false, local mapping and loop closing run in tracking's thread right
+  // after the keyframe is made, while the next frames are read and prepared ahead, so a threaded
+  // run's trajectory is the sequential run's bit for bit. true: they run in threads of their own
+  // beside tracking (ORB-SLAM2's design), tracking goes on while a keyframe is mapped, and runs
+  // vary. On two cores the preparing stage already keeps both cores busy: true was no faster,
+  // and on fast hand-held turns it tracked against a map that lagged behind (docs/performance.md).
+  // The settings below marked "concurrent mapping" apply only with true.
+  bool concurrent = false;
+  // Concurrent mapping: tracking makes no keyframe while this many wait for local mapping.
   int max_queued_keyframes = 3;
-  // Threaded mapping: tracking waits before frame k while local mapping has not finished a
+  // Concurrent mapping: tracking waits before frame k while local mapping has not finished a
   // keyframe made before frame k − max_tracking_lead (0: never waits). Read from files, tracking
   // outruns mapping and leans on a map that lags behind a fast-turning view; a camera gives
   // mapping that time, and so does this bound, without sleeping when mapping keeps up
   // (docs/configuration.md).
   int max_tracking_lead = 1;
-  // Threaded mapping: a keyframe that arrives while local BA solves stops it after the iteration
+  // Concurrent mapping: a keyframe that arrives while local BA solves stops it after the iteration
   // under way (its solution so far is kept), and one already waiting when the BA would start
   // skips it, as ORB-SLAM2's local mapping does: the next keyframe's BA covers nearly the same
   // window. Sequential runs never stop a BA.
@@ -75,6 +83,7 @@ struct LocalMapperOptions {
     visit("fixed_keyframes", o.fixed_keyframes);
     visit("max_ba_observations", o.max_ba_observations);
     visit("bundle_adjustment", o.bundle_adjustment);
+    visit("concurrent", o.concurrent);
     visit("max_queued_keyframes", o.max_queued_keyframes);
     visit("max_tracking_lead", o.max_tracking_lead);
     visit("stop_ba_for_new_keyframe", o.stop_ba_for_new_keyframe);

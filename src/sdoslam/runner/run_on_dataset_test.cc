@@ -231,10 +231,11 @@ TEST(ConsistencyCheck, LandmarksOfAParkedCartLeaveTheMapOnceItMoves) {
 }
 
 // Long runs: 600 frames of people walking through the room, the dynamic front end on, with
-// local mapping inline and in its thread. Frame poses are stored relative to keyframes that
-// culling later removes: they must stay as good as the keyframes themselves, and a camera that
-// never leaves the room must keep a map of bounded size. One test renders the sequence once for
-// both modes (ctest runs each test in a process of its own: two tests would render it twice).
+// local mapping inline and in its thread (mapping.concurrent). Frame poses are stored relative to
+// keyframes that culling later removes: they must stay as good as the keyframes themselves, and a
+// camera that never leaves the room must keep a map of bounded size. One test renders the sequence
+// once for both modes (ctest runs each test in a process of its own: two tests would render it
+// twice).
 TEST(LongRun, FramePosesStayWithTheirKeyFramesAndTheMapStaysBoundedInlineAndThreaded) {
   testing::TempDir dir;
   WriteScenario("walking_xyz", dir, 600);
@@ -243,6 +244,7 @@ TEST(LongRun, FramePosesStayWithTheirKeyFramesAndTheMapStaysBoundedInlineAndThre
     RunOptions run =
         SyntheticRun(dir / "seq", dir / (sequential ? "seq_out" : "thr_out"), RunMode::kSdo);
     run.slam.sequential = sequential;
+    run.slam.mapping.concurrent = !sequential;
     size_t most_keyframes = 0;
     run.after_frame = [&](const TrackingResult& r, const System&) {
       most_keyframes = std::max(most_keyframes, r.keyframes_alive);
@@ -942,12 +944,13 @@ TEST(PipelineLayouts, AnOmdSegmentRunsLikeItsTumCopy) {
 namespace sdoslam {
 namespace {
 
-// Preparing ahead moves the front end and feature extraction of frame k + 1 into a thread that
-// runs while frame k is tracked, and there (without orb.budget_on_static, whose extraction waits
-// for the labels) extracts the features in a task beside the front end
-// (extract_beside_front_end). With mapping inline, that must change nothing: a stage that
-// delivered frames out of order, dropped one, or let the front end see them in another order
-// would change the trajectory and the per-frame labels.
+// A threaded run prepares ahead: it moves the front end and feature extraction of frame k + 1
+// into a thread that runs while frame k is tracked, and there (without orb.budget_on_static,
+// whose extraction waits for the labels) extracts the features in a task beside the front end
+// (extract_beside_front_end). With mapping inline (mapping.concurrent false, the default), that
+// must change nothing: a stage that delivered frames out of order, dropped one, or let the front
+// end see them in another order would change the trajectory and the per-frame labels, and so
+// would local mapping run beside tracking.
 TEST(PipelineStages, PreparingAheadGivesTheInlineRunsTrajectoryBitForBit) {
   testing::TempDir dir;
   const auto sequence = testing::WriteShortWalk(dir, 60);
@@ -959,7 +962,7 @@ TEST(PipelineStages, PreparingAheadGivesTheInlineRunsTrajectoryBitForBit) {
     RunOptions run =
         SyntheticRun(sequence, dir / fmt::format("out_{}_{}_{}", ahead, capacity, budget_on_static),
                      RunMode::kSdo);
-    run.slam.sequential = true;
+    run.slam.sequential = !ahead;  // ahead: a threaded run, as `sdoslam run` makes by default
     run.slam.orb.budget_on_static = budget_on_static;
     run.prepare_ahead = ahead;
     run.prepare_queue_capacity = capacity;
@@ -1009,6 +1012,7 @@ TEST(PipelineStages, AnUnreadableFrameInThePreparingThreadReachesTheCaller) {
     RunOptions run =
         SyntheticRun(sequence, dir / fmt::format("out_{}", sequential_mapping), RunMode::kSdo);
     run.slam.sequential = sequential_mapping;
+    run.slam.mapping.concurrent = !sequential_mapping;
     run.prepare_ahead = true;
     size_t frames_tracked_before = 0;
     run.after_frame = [&](const TrackingResult& r, const System&) {

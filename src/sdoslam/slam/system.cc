@@ -65,7 +65,7 @@ System::System(const CameraOptions& camera, const SlamOptions& options)
   tracker_ = std::make_unique<Tracker>(map_.get(), options_.tracking, places_.get());
   mapper_ = std::make_unique<LocalMapper>(map_.get(), options_.mapping);
   loop_closer_ = std::make_unique<LoopCloser>(map_.get(), places_.get(), options_.loop_closing);
-  if (!options_.sequential) {
+  if (MapsBesideTracking()) {
     mapping_thread_ = std::thread([this] { MappingLoop(); });
     loop_thread_ = std::thread([this] { LoopLoop(); });
   }
@@ -92,7 +92,7 @@ void System::LoopLoop() {
 
 void System::CloseLoops(KeyFrame* keyframe) {
   LoopResult result;
-  if (options_.sequential) {
+  if (!MapsBesideTracking()) {
     result = loop_closer_->Process(keyframe);
   } else {
     result =
@@ -240,7 +240,7 @@ void System::AddDynamicInputs(PreparedFrame* prepared, const cv::Mat& dynamic_la
 }
 
 void System::WaitForMapping(size_t index, FrameTiming* timing) {
-  if (options_.sequential) return;
+  if (!MapsBesideTracking()) return;
   const size_t lead = static_cast<size_t>(options_.mapping.max_tracking_lead);
   const auto start = std::chrono::steady_clock::now();
   // Keyframes are mapped in the order they were made: the oldest unfinished one is the one under
@@ -265,7 +265,7 @@ TrackingResult System::Track(PreparedFrame&& prepared, FrameTiming* timing) {
   WaitForMapping(prepared.frame.index, &t);
   KeyFrame* keyframe = nullptr;
   bool idle = true, accepts = true;
-  if (!options_.sequential) {
+  if (MapsBesideTracking()) {
     mapping_queue_.Inspect([&](const auto& queue) {
       idle = queue.waiting.empty() && !queue.busy;
       accepts = static_cast<int>(queue.waiting.size()) < options_.mapping.max_queued_keyframes;
@@ -285,7 +285,7 @@ TrackingResult System::Track(PreparedFrame&& prepared, FrameTiming* timing) {
     } in_frame(&in_frame_);
     result = tracker_->Track(std::move(prepared.frame), &keyframe, idle, accepts,
                              prepared.consistency ? &*prepared.consistency : nullptr,
-                             options_.sequential ? nullptr : &lock);
+                             MapsBesideTracking() ? &lock : nullptr);
     t.lock_wait_ms += tracker_->last_lock_wait_ms();
     result.keyframes_alive = map_->GoodKeyFrames();
     result.map_points_alive = map_->GoodPoints();
@@ -293,7 +293,7 @@ TrackingResult System::Track(PreparedFrame&& prepared, FrameTiming* timing) {
   frame_done_.notify_all();
   t.tracking_ms = MsSince(start);
   if (keyframe != nullptr) {
-    if (options_.sequential) {
+    if (!MapsBesideTracking()) {
       const StageClock clock;
       const MappingResult mapped = mapper_->Process(keyframe);
       CloseLoops(keyframe);

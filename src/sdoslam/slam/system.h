@@ -47,8 +47,9 @@ struct SlamOptions {
   // Bag-of-words vocabulary for place recognition (sdoslam vocab build), for relocalization and
   // loop closing alike; empty: the one built into the library.
   std::string vocabulary;
-  // true: local mapping runs inline after each keyframe, and runs are bit-identical.
-  // false: it runs in its own thread, concurrently with feature extraction and tracking.
+  // true: local mapping and loop closing run inline after each keyframe, and runs are
+  // bit-identical. false (a threaded run): with mapping.concurrent they run in threads of their
+  // own beside tracking; without it, inline as with true.
   // Not among the settings below: how a run is driven is the run's (run.sequential in a run
   // config, or --sequential), and library callers set it here.
   bool sequential = true;
@@ -77,9 +78,9 @@ void WriteSlamOptions(const SlamOptions& options, YAML::Emitter* out);
 struct FrameTiming {
   double features_ms = 0, tracking_ms = 0, mapping_ms = 0;
   double lock_wait_ms = 0;  // of tracking_ms: waiting for the map while local mapping held it
-  // Threaded: how many frames before this one the oldest keyframe was made that local mapping
-  // had not finished when this frame was tracked (0: none; at most mapping.max_tracking_lead
-  // when that bounds it).
+  // Concurrent mapping: how many frames before this one the oldest keyframe was made that local
+  // mapping had not finished when this frame was tracked (0: none; at most
+  // mapping.max_tracking_lead when that bounds it).
   size_t mapping_lag_frames = 0;
 };
 
@@ -104,9 +105,9 @@ struct PreparedFrame {
   cv::Mat gray, depth;
 };
 
-// The library's face: feed RGB-D frames in order, read trajectories. Local mapping runs inline
-// (sequential) or in a thread fed by a bounded queue; Shutdown() (or the destructor) lets it
-// finish the queued keyframes and joins it.
+// The library's face: feed RGB-D frames in order, read trajectories. Local mapping runs inline,
+// or (threaded, mapping.concurrent) in a thread fed by a bounded queue; Shutdown() (or the
+// destructor) lets it finish the queued keyframes and joins it.
 class System {
  public:
   System(const CameraOptions& camera, const SlamOptions& options);
@@ -174,10 +175,13 @@ class System {
   std::vector<LoopRecord> LoopRecords() const;
 
  private:
+  // Local mapping and loop closing run in threads of their own (a threaded run with
+  // mapping.concurrent); otherwise inline, after the frame that made the keyframe.
+  bool MapsBesideTracking() const { return !options_.sequential && options_.mapping.concurrent; }
   void MappingLoop();
   void LoopLoop();
   void CloseLoops(KeyFrame* keyframe);
-  // Threaded: waits until local mapping has finished every keyframe made more than
+  // Concurrent mapping: waits until local mapping has finished every keyframe made more than
   // mapping.max_tracking_lead frames before frame `index`. Adds the wait to
   // timing->lock_wait_ms and sets timing->mapping_lag_frames.
   void WaitForMapping(size_t index, FrameTiming* timing);
@@ -202,7 +206,7 @@ class System {
   // loop correction waits for frame_done_ until it is not.
   bool in_frame_ = false;
   std::condition_variable frame_done_;
-  // Threaded: keyframes for local mapping (its waiting() flag stops local BA), and the
+  // Concurrent mapping: keyframes for local mapping (its waiting() flag stops local BA), and the
   // keyframes local mapping has finished, for loop closing.
   BoundedQueue<KeyFrame*> mapping_queue_;
   BoundedQueue<KeyFrame*> loop_queue_;

@@ -110,11 +110,20 @@ TEST(SlamDeterminism, TwoRunsGiveBitIdenticalTrajectories) {
   }
 }
 
+// Concurrent mapping (mapping.concurrent): local mapping and loop closing in threads of their
+// own, beside tracking.
+SlamOptions Concurrent() {
+  SlamOptions options;
+  options.sequential = false;
+  options.mapping.concurrent = true;
+  return options;
+}
+
 TEST(SlamThreaded, MappingThreadGivesAnAccurateTrajectoryAndStopsCleanly) {
   testing::TempDir dir;
   RenderStaticRoom(dir, synth::CameraMotion::kRpy, 150);
-  const RunResult run =
-      RunSequence(dir / "seq", synth::SyntheticCamera(), 0, {}, /*sequential=*/false);
+  const RunResult run = RunSequence(dir / "seq", synth::SyntheticCamera(), 0, {},
+                                    /*sequential=*/false, nullptr, Concurrent());
   ASSERT_EQ(run.trajectory.size(), 150u);
   EXPECT_GT(run.keyframes, 5u);
   const AteResult ate =
@@ -123,9 +132,7 @@ TEST(SlamThreaded, MappingThreadGivesAnAccurateTrajectoryAndStopsCleanly) {
 
   // Destroying a system with keyframes still queued finishes them and joins the thread.
   const TumDataset dataset(dir / "seq", synth::SyntheticCamera());
-  SlamOptions threaded;
-  threaded.sequential = false;
-  auto slam = std::make_unique<System>(synth::SyntheticCamera(), threaded);
+  auto slam = std::make_unique<System>(synth::SyntheticCamera(), Concurrent());
   for (size_t i = 0; i < 20; ++i) {
     const RgbdFrame frame = dataset.Load(i);
     slam->TrackRgbd(i, frame.timestamp, frame.bgr, frame.depth);
@@ -147,8 +154,7 @@ std::vector<RgbdFrame> PreloadedStaticRoom() {
 
 // Threaded, with a keyframe asked for at every tracked frame (too few close points tracked).
 SlamOptions ThreadedWithAKeyFrameAskedForAtEveryFrame() {
-  SlamOptions options;
-  options.sequential = false;
+  SlamOptions options = Concurrent();
   options.tracking.min_close_points = 100000;
   options.tracking.close_points_to_create = 0;
   return options;
