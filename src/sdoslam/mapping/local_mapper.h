@@ -45,8 +45,9 @@ struct LocalMapperOptions {
   // after the keyframe is made, while the next frames are read and prepared ahead, so a threaded
   // run's trajectory is the sequential run's bit for bit. true: they run in threads of their own
   // beside tracking (ORB-SLAM2's design), tracking goes on while a keyframe is mapped, and runs
-  // vary. On two cores the preparing stage already keeps both cores busy: true was no faster,
-  // and on fast hand-held turns it tracked against a map that lagged behind (docs/performance.md).
+  // vary. On two cores the preparing stage already keeps both cores busy: true was at most 9 %
+  // faster, and on fast hand-held turns it tracked against a map that lagged behind
+  // (docs/performance.md).
   // The settings below marked "concurrent mapping" apply only with true.
   bool concurrent = false;
   // Concurrent mapping: tracking makes no keyframe while this many wait for local mapping.
