@@ -254,6 +254,89 @@ SceneObject Person(uint16_t id, const std::string& name, const Vector3d& a, cons
   return person;
 }
 
+SceneObject SittingPerson(uint16_t id, const std::string& name, const Vector3d& feet,
+                          const Vector3d& walk, double facing_yaw, const SittingSchedule& when,
+                          const Vector3f& shirt, const Vector3f& trousers) {
+  if (!(0 < when.arrive && when.arrive < when.seated && when.seated <= when.rise &&
+        when.rise < when.stood && when.stood < when.gone)) {
+    throw Error("SittingPerson '" + name + "': its schedule's times are out of order");
+  }
+  const double walking_yaw = std::atan2(walk.y(), walk.x()) - kPi / 2;
+  // The turn from walking to facing, the short way round.
+  const double turn = std::remainder(facing_yaw - walking_yaw, 2 * kPi);
+  // 0 → 1 over [t0, t1], smooth at both ends (1 − cos).
+  auto ease = [](double t, double t0, double t1) {
+    const double s = std::clamp((t - t0) / (t1 - t0), 0.0, 1.0);
+    return 0.5 * (1 - std::cos(kPi * s));
+  };
+  struct State {
+    Isometry3d body;  // feet on the floor, y forward, z up
+    double sit;       // 0 standing, 1 seated
+    double swing;     // the legs' swing angle
+  };
+  auto state = [=](double t) {
+    double along, sit, facing;
+    if (t < when.seated) {
+      along = ease(t, 0, when.arrive) - 1;  // −1 → 0: walking in
+      sit = ease(t, when.arrive, when.seated);
+      facing = sit;
+    } else {
+      along = ease(t, when.stood, when.gone);  // 0 → 1: walking off
+      sit = 1 - ease(t, when.rise, when.stood);
+      facing = sit;
+    }
+    // Legs swing while walking, about one stride per 1.4 m, as Person's do.
+    const bool walking_in = t<when.arrive, walking_off = t> when.stood && t < when.gone;
+    const double gait = 2 * kPi * (along * walk.norm()) / 1.4;
+    const double swing = walking_in || walking_off ? 0.45 * std::sin(gait) : 0.0;
+    return State{Pose(feet + along * walk, Rz(walking_yaw + facing * turn)), sit, swing};
+  };
+  SceneObject person;
+  person.id = id;
+  person.name = name;
+  person.class_name = "person";
+  person.pose_at = [=](double t) { return state(t).body; };
+  person.parts_at = [=](double t) {
+    const State s = state(t);
+    std::vector<Primitive> parts;
+    auto part = [&](Primitive::Shape shape, const Isometry3d& local, const Vector3d& half,
+                    const Vector3f& colour, uint32_t seed) {
+      Primitive p;
+      p.shape = shape;
+      p.T_world_primitive = s.body * local;
+      p.half_size = half;
+      p.base_colour = colour;
+      p.texture_seed = 1000u + id * 16u + seed;
+      p.T_world_texture = s.body;
+      parts.push_back(p);
+    };
+    constexpr double kShin = 0.47, kThigh = 0.44;
+    // Sitting turns the thighs forward about the knees, which stay over the feet: the hips go
+    // down and back onto the seat.
+    const double bend = s.sit * kPi / 2;
+    const Vector3d hips(0, -kThigh * std::sin(bend), kShin + kThigh * std::cos(bend));
+    const Vector3f skin(0.85f, 0.65f, 0.5f);
+    for (int side : {-1, 1}) {
+      const Vector3d hip = hips + Vector3d(0.1 * side, 0, 0);
+      const Eigen::Matrix3d thigh = Rx(bend + side * s.swing), shin = Rx(side * s.swing);
+      const Vector3d knee = hip + thigh * Vector3d(0, 0, -kThigh);
+      part(Primitive::Shape::kBox, Pose(hip + thigh * Vector3d(0, 0, -kThigh / 2), thigh),
+           {0.075, 0.09, kThigh / 2}, trousers, side > 0 ? 1 : 2);
+      part(Primitive::Shape::kBox, Pose(knee + shin * Vector3d(0, 0, -kShin / 2), shin),
+           {0.065, 0.08, kShin / 2}, trousers, side > 0 ? 7 : 8);
+      const Vector3d shoulder = hips + Vector3d(0.28 * side, 0, 0.55);
+      const Eigen::Matrix3d arm = Rx(-side * s.swing * 0.8);
+      part(Primitive::Shape::kBox, Pose(shoulder + arm * Vector3d(0, 0, -0.3), arm),
+           {0.055, 0.06, 0.3}, shirt, side > 0 ? 3 : 4);
+    }
+    part(Primitive::Shape::kBox, Pose(hips + Vector3d(0, 0, 0.3)), {0.21, 0.12, 0.31}, shirt, 5);
+    part(Primitive::Shape::kEllipsoid, Pose(hips + Vector3d(0, 0, 0.76)), {0.09, 0.1, 0.12}, skin,
+         6);
+    return parts;
+  };
+  return person;
+}
+
 // A box hanging from `pivot` on a rigid rod, swinging about a horizontal axis (OMD-style).
 SceneObject Pendulum(uint16_t id, const std::string& name, const Vector3d& pivot, double length,
                      double axis_yaw, double amplitude, double period, double phase,

@@ -66,6 +66,22 @@ SceneObject Person(uint16_t id, const std::string& name, const Eigen::Vector3d& 
                    const Eigen::Vector3d& b, double period, double phase,
                    const Eigen::Vector3f& shirt, const Eigen::Vector3f& trousers,
                    double start_time = 0.0);
+// When a SittingPerson does what (seconds of the sequence, in this order).
+struct SittingSchedule {
+  double arrive;  // walks in until then
+  double seated;  // sits down until then
+  double rise;    // sits still until then
+  double stood;   // stands up until then
+  double gone;    // walks off until then (and stands there after)
+};
+// A person who walks in along `walk` (a floor vector) to `feet` (where its feet are while it
+// sits), turns to face `facing_yaw` (the body's forward, y, turned about z) and sits down on a
+// seat 0.45 m high behind the feet, sits still, stands up and walks on along `walk` as far again.
+// Thighs and shins are separate parts, so the knees bend. Class "person".
+SceneObject SittingPerson(uint16_t id, const std::string& name, const Eigen::Vector3d& feet,
+                          const Eigen::Vector3d& walk, double facing_yaw,
+                          const SittingSchedule& schedule, const Eigen::Vector3f& shirt,
+                          const Eigen::Vector3f& trousers);
 // A box hanging from `pivot` on a rigid rod of `length`, swinging about a horizontal axis
 // (OMD-style); no known class.
 SceneObject Pendulum(uint16_t id, const std::string& name, const Eigen::Vector3d& pivot,
