@@ -15,6 +15,7 @@
 #include <utility>
 #include <vector>
 
+#include "sdoslam/eval/mask_metrics.h"
 #include "sdoslam/io/trajectory.h"
 #include "sdoslam/testing/html_references.h"
 #include "sdoslam/testing/test_util.h"
@@ -635,8 +636,11 @@ TEST_F(CliRun, MaskScoresNeedACompleteSetWithFeatures) {
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("run with --save-masks"), std::string::npos) << r.output;
   ASSERT_EQ(RunSdoslam(run + " --save-masks").exit_code, 0);
-  r = RunSdoslam("eval-masks --dataset " + seq + " --run " + (dir_ / "out").string());
+  r = RunSdoslam("eval-masks --dataset " + seq + " --run " + (dir_ / "out").string() +
+                 " --per-frame " + (dir_ / "per_frame.csv").string());
   EXPECT_EQ(r.exit_code, 0) << r.output;
+  // One row per frame and class in view, after the header: none in a static room.
+  EXPECT_EQ(testing::ReadText(dir_ / "per_frame.csv"), std::string(kPerFrameScoresHeader) + "\n");
   // A mask changed after the run (or left from another) is not scored.
   const auto mask = std::filesystem::directory_iterator(dir_ / "out" / "masks")->path();
   cv::imwrite(mask.string(), cv::Mat(cv::imread(mask.string()).size(), CV_8U, cv::Scalar(1)));

@@ -9,6 +9,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
+#include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/camera.h"
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/regular_file.h"
@@ -24,6 +25,7 @@ namespace {
 struct EvalMasksArgs {
   std::string dataset;
   std::vector<std::string> runs;
+  std::string per_frame;  // CSV of the per-class scores of every frame; empty: none
 };
 
 // features.csv: index,x,y,label per feature, grouped by frame index.
@@ -64,6 +66,8 @@ void EvalMasks(const EvalMasksArgs& args) {
       if (space != std::string::npos) rgb.emplace_back(line.substr(space + 1));
     }
   }
+  std::ostringstream per_frame;
+  per_frame << kPerFrameScoresHeader << "\n";
   for (const std::string& run_folder : args.runs) {
     const std::filesystem::path run = run_folder;
     // Only a complete set is scored: never masks of an earlier run mixed with a newer one's.
@@ -91,6 +95,12 @@ void EvalMasks(const EvalMasksArgs& args) {
     }
     if (evaluator.result().frames == 0) throw Error(run.string() + ": no mask matches the dataset");
     std::cout << FormatMaskEvaluation(evaluator.result(), run.string());
+    WritePerFrameScores(evaluator.result(), run.string(), per_frame);
+  }
+  // Written once every run is scored: an error in a later run leaves no partial table.
+  if (!args.per_frame.empty()) {
+    WriteFileAtomically(args.per_frame, [&](std::ostream& out) { out << per_frame.str(); });
+    std::cout << "wrote " << args.per_frame << "\n";
   }
 }
 
@@ -106,6 +116,9 @@ void AddEvalMasksCommand(CLI::App& app) {
       ->required();
   cmd->add_option("--run", args->runs, "output folder of `sdoslam run --save-masks` (repeatable)")
       ->required();
+  cmd->add_option("--per-frame", args->per_frame,
+                  "write each class's scores frame by frame to this CSV (run, frame, file, class, "
+                  "IoU, true/false positives, false negatives)");
   cmd->callback([args] { EvalMasks(*args); });
 }
 

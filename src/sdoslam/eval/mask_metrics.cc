@@ -169,7 +169,9 @@ void MaskEvaluator::AddFrame(const std::filesystem::path& rgb_path, const cv::Ma
   for (size_t slot = 0; slot < class_truth.size(); ++slot) {
     const cv::Mat& mask = class_truth[slot];
     if (mask.empty()) continue;
-    result_.per_class[class_names_[slot]] += CountInGrownBoxes(mask, truth, predicted);
+    const MaskCounts counts = CountInGrownBoxes(mask, truth, predicted);
+    result_.per_class[class_names_[slot]] += counts;
+    result_.per_frame.push_back({result_.frames, name, class_names_[slot], counts});
   }
 
   if (features.size() != feature_labels.size())
@@ -188,10 +190,29 @@ std::string FormatMaskEvaluation(const MaskEvaluation& e, const std::string& lab
                    e.features.true_positive + e.features.false_negative +
                        e.features.false_positive + e.features.true_negative);
   for (const auto& [cls, c] : e.per_class) {
-    s += fmt::format("  {:<9} precision {:.3f}  recall {:.3f}  IoU {:.3f}\n", cls + ":",
+    std::vector<double> iou;
+    for (const MaskEvaluation::FrameScore& f : e.per_frame) {
+      if (f.class_name == cls) iou.push_back(f.counts.Iou());
+    }
+    std::sort(iou.begin(), iou.end());
+    s += fmt::format("  {:<9} precision {:.3f}  recall {:.3f}  IoU {:.3f}", cls + ":",
                      c.Precision(), c.Recall(), c.Iou());
+    if (!iou.empty()) {
+      const size_t n = iou.size();
+      const double median = n % 2 == 1 ? iou[n / 2] : 0.5 * (iou[n / 2 - 1] + iou[n / 2]);
+      s += fmt::format("  (in {} frames: median {:.3f}, lowest {:.3f})", n, median, iou.front());
+    }
+    s += "\n";
   }
   return s;
+}
+
+void WritePerFrameScores(const MaskEvaluation& e, const std::string& run, std::ostream& out) {
+  for (const MaskEvaluation::FrameScore& f : e.per_frame) {
+    out << fmt::format("{},{},{},{},{:.4f},{},{},{}\n", run, f.frame, f.file, f.class_name,
+                       f.counts.Iou(), f.counts.true_positive, f.counts.false_positive,
+                       f.counts.false_negative);
+  }
 }
 
 }  // namespace sdoslam

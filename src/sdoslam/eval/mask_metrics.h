@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <map>
 #include <opencv2/core.hpp>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -26,6 +27,16 @@ struct MaskEvaluation {
   // class's moving objects, and predicted pixels within their bounding boxes (grown by 10 %)
   // that are not moving; predictions elsewhere count in `pixels` only.
   std::map<std::string, MaskCounts> per_class;
+  // The same per class and frame, for each frame in which the class has moving pixels: a
+  // summed IoU hides the frames where an object is missed altogether (a person standing still
+  // that no detector sees), and "every frame the person is in view" is what a user needs.
+  struct FrameScore {
+    size_t frame;  // 0-based, in the order AddFrame was called
+    std::string file;
+    std::string class_name;
+    MaskCounts counts;
+  };
+  std::vector<FrameScore> per_frame;
 };
 
 // Compares predicted dynamic masks with the ground truth of a synthetic sequence
@@ -51,6 +62,13 @@ class MaskEvaluator {
   MaskEvaluation result_;
 };
 
+// The summary `eval-masks` prints: overall, features, and per class its summed scores with the
+// median and lowest IoU over the frames it is in view.
 std::string FormatMaskEvaluation(const MaskEvaluation& e, const std::string& label);
+// The header of WritePerFrameScores' CSV.
+inline constexpr const char* kPerFrameScoresHeader =
+    "run,frame,file,class,iou,true_positive,false_positive,false_negative";
+// `e.per_frame` as CSV rows under kPerFrameScoresHeader, `run` naming the run in each.
+void WritePerFrameScores(const MaskEvaluation& e, const std::string& run, std::ostream& out);
 
 }  // namespace sdoslam

@@ -2,7 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <map>
 #include <opencv2/imgcodecs.hpp>
+#include <sstream>
 
 #include "sdoslam/core/error.h"
 #include "sdoslam/testing/test_util.h"
@@ -61,6 +63,39 @@ TEST(MaskEvaluator, NeedsGroundTruthAndMatchingSizes) {
   MaskEvaluator evaluator(dir.path());
   EXPECT_THROW(evaluator.AddFrame("f.png", cv::Mat(31, 40, CV_8U, cv::Scalar(0))), Error);
   EXPECT_THROW(evaluator.AddFrame("g.png", cv::Mat(30, 40, CV_8U, cv::Scalar(0))), Error);
+}
+
+// A person found whole in one frame and missed in the next: the summed IoU (0.5) hides the
+// miss, the per-frame scores show it.
+TEST(MaskEvaluator, ScoresEachClassFrameByFrame) {
+  testing::TempDir dir;
+  WriteTruth(dir.path());
+  std::filesystem::copy_file(dir.path() / "dynamic" / "f.png", dir.path() / "dynamic" / "g.png");
+  std::filesystem::copy_file(dir.path() / "instance" / "f.png", dir.path() / "instance" / "g.png");
+  MaskEvaluator evaluator(dir.path());
+  cv::Mat found(30, 40, CV_8U, cv::Scalar(0));
+  found(cv::Rect(0, 0, 10, 10)).setTo(1);   // the person
+  found(cv::Rect(20, 0, 10, 10)).setTo(2);  // the box
+  evaluator.AddFrame("rgb/f.png", found);
+  cv::Mat missed = found.clone();
+  missed(cv::Rect(0, 0, 10, 10)).setTo(0);
+  evaluator.AddFrame("rgb/g.png", missed);
+  const MaskEvaluation& e = evaluator.result();
+  EXPECT_DOUBLE_EQ(e.per_class.at("person").Iou(), 0.5);
+  ASSERT_EQ(e.per_frame.size(), 4u);  // person and box in each frame
+  std::map<std::pair<size_t, std::string>, double> iou;
+  for (const auto& f : e.per_frame) iou[{f.frame, f.class_name}] = f.counts.Iou();
+  EXPECT_DOUBLE_EQ((iou[{0, "person"}]), 1.0);
+  EXPECT_DOUBLE_EQ((iou[{1, "person"}]), 0.0);
+  EXPECT_DOUBLE_EQ((iou[{1, "unknown"}]), 1.0);
+  const std::string summary = FormatMaskEvaluation(e, "run");
+  EXPECT_NE(summary.find("person:   precision 1.000  recall 0.500  IoU 0.500  (in 2 frames: "
+                         "median 0.500, lowest 0.000)"),
+            std::string::npos)
+      << summary;
+  std::ostringstream csv;
+  WritePerFrameScores(e, "out", csv);
+  EXPECT_NE(csv.str().find("out,1,g.png,person,0.0000,0,0,100\n"), std::string::npos) << csv.str();
 }
 
 }  // namespace
