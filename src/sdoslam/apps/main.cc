@@ -11,6 +11,7 @@
 #include "sdoslam/apps/demo_command.h"
 #include "sdoslam/apps/eval_command.h"
 #include "sdoslam/apps/eval_masks_command.h"
+#include "sdoslam/apps/eval_objects_command.h"
 #include "sdoslam/apps/exit_codes.h"
 #include "sdoslam/apps/run_command.h"
 #include "sdoslam/apps/synth_command.h"
@@ -53,6 +54,7 @@ int main(int argc, char** argv) {
   sdoslam::AddRunCommand(app);
   sdoslam::AddBenchCommand(app);
   sdoslam::AddEvalMasksCommand(app);
+  sdoslam::AddEvalObjectsCommand(app);
   sdoslam::AddConvertCommand(app);
   sdoslam::AddVocabCommand(app);
   RefuseEmptyOutputs(app);

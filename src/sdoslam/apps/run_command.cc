@@ -40,6 +40,7 @@ struct RunArgs {
   bool save_overlays = false;
   bool save_masks = false;
   bool save_map = false;
+  bool save_objects = false;
 };
 
 // Options of the dynamic front end say so when the mode has no front end.
@@ -107,6 +108,7 @@ void RunSlam(const RunArgs& args, const RunCommandOptions& given) {
   run.save_overlays = run.save_overlays || args.save_overlays;
   run.save_masks = run.save_masks || args.save_masks;
   run.save_map = run.save_map || args.save_map;
+  run.save_objects = run.save_objects || args.save_objects;
   run.camera_rate = run.camera_rate || args.camera_rate;
   run.out = args.out;
   InterruptHandler interrupts;
@@ -121,7 +123,7 @@ void RunSlam(const RunArgs& args, const RunCommandOptions& given) {
             << (run.save_masks ? ", masks/, features.csv" : "")
             << (run.save_overlays ? ", overlays/" : "")
             << (run.save_map ? fmt::format(", map.ply ({} static points)", s.map_cloud_points) : "")
-            << ", manifest.json\n";
+            << (run.save_objects ? ", objects.csv, objects/" : "") << ", manifest.json\n";
   if (s.masks) std::cout << '\n' << FormatMaskEvaluation(*s.masks, "dynamic masks");
   if (s.evaluation) std::cout << '\n' << FormatTable({*s.evaluation}, EvaluationOptions{});
   if (s.interrupted) {
@@ -177,6 +179,10 @@ void AddRunCommand(CLI::App& app) {
   cmd->add_flag("--save-map", args->save_map,
                 "write map.ply: the static map as a coloured point cloud (points on things found "
                 "moving left out), for MeshLab, CloudCompare or Open3D");
+  cmd->add_flag("--save-objects", args->save_objects,
+                "write objects.csv (each moving object's id, class, own motion, centroid and size "
+                "per frame) and objects/<id>.txt (its centroid track, TUM format), for sdoslam "
+                "eval-objects");
   cmd->callback([args, given] { RunSlam(*args, *given); });
 }
 

@@ -64,6 +64,7 @@ RunOptions LoadRunConfig(const std::filesystem::path& config) {
     section->Read("save_overlays", &run.save_overlays);
     section->Read("save_masks", &run.save_masks);
     section->Read("save_map", &run.save_map);
+    section->Read("save_objects", &run.save_objects);
     section->Read("camera_rate", &run.camera_rate);
     section->RejectUnknownKeys();
   }
@@ -114,6 +115,7 @@ std::string ResolvedConfig(const RunOptions& run) {
   resolved << YAML::Key << "save_overlays" << YAML::Value << run.save_overlays;
   resolved << YAML::Key << "save_masks" << YAML::Value << run.save_masks;
   resolved << YAML::Key << "save_map" << YAML::Value << run.save_map;
+  resolved << YAML::Key << "save_objects" << YAML::Value << run.save_objects;
   resolved << YAML::Key << "camera_rate" << YAML::Value << run.camera_rate;
   resolved << YAML::EndMap;
   WriteCameraOptions(run.camera, &resolved);
@@ -589,10 +591,27 @@ void SaveFrameImages(const RunOptions& run, const ResultSetWriter& results, size
   }
 }
 
+// The moving objects of frame `out` (its label image) added to `objects`.
+void FollowObjects(const FrameOutput& out, ObjectTracker* tracker,
+                   std::vector<ObjectObservation>* objects) {
+  const TrackingResult& r = out.tracking;
+  std::vector<ClassHint> hints;
+  if (out.sdo) {
+    for (const Detection& d : out.sdo->detections) hints.push_back({d.class_name, d.box});
+  }
+  cv::Mat gray;
+  cv::cvtColor(out.input.bgr, gray, cv::COLOR_BGR2GRAY);
+  for (ObjectObservation& o :
+       tracker->Update(r.index, r.timestamp, gray, out.input.depth, out.labels, hints,
+                       r.T_camera_world.inverse(), r.state == TrackingState::kOk))
+    objects->push_back(std::move(o));
+}
+
 // The run's files (trajectories, config, logs, the map when asked for) staged in `results`.
 void WriteRunFiles(const RunOptions& run, const System& slam, const std::string& resolved_config,
                    const std::string& frames_csv, const std::string& features_csv,
-                   ResultSetWriter& results, RunSummary* summary) {
+                   const std::vector<ObjectObservation>& objects, ResultSetWriter& results,
+                   RunSummary* summary) {
   WriteTumTrajectory(results.Stage("CameraTrajectory.txt"), summary->trajectory);
   WriteTumTrajectory(results.Stage("KeyFrameTrajectory.txt"), summary->keyframe_trajectory);
   results.WriteText("config.yaml", resolved_config);
@@ -600,6 +619,12 @@ void WriteRunFiles(const RunOptions& run, const System& slam, const std::string&
   results.WriteText("mapping.csv", Csv(MappingColumns(), summary->mapping));
   results.WriteText("loops.csv", Csv(LoopColumns(), summary->loops));
   if (run.save_masks) results.WriteText("features.csv", features_csv);
+  if (run.save_objects) {
+    // In the final trajectory's world, where local BA and loop closing left the camera.
+    results.WriteText("objects.csv", ObjectsCsv(objects, summary->trajectory));
+    for (const auto& [id, track] : ObjectCentroidTracks(objects, summary->trajectory))
+      WriteTumTrajectory(results.Stage(fmt::format("objects/{}.txt", id)), track);
+  }
   if (run.save_map) {
     const std::vector<ColoredPoint> cloud = slam.StaticMapCloud();
     summary->map_cloud_points = cloud.size();
@@ -666,6 +691,9 @@ RunSummary RunOnDataset(const RunOptions& options) {
 
   std::string log = CsvHeader(FrameColumns());
   std::string feature_log = "index,x,y,label\n";
+  std::optional<ObjectTracker> object_tracker;
+  if (run.save_objects) object_tracker.emplace(run.camera, run.objects);
+  std::vector<ObjectObservation> objects;
   RunTimings timings;
   int best_depth_features = 0;
   const auto run_start = std::chrono::steady_clock::now();
@@ -697,6 +725,7 @@ RunSummary RunOnDataset(const RunOptions& options) {
       mask_evaluator->AddFrame(rgb_paths[i], labels, r.feature_points, r.feature_labels);
     }
     SaveFrameImages(run, results, i, rgb_paths[i].filename().string(), out, &feature_log);
+    if (object_tracker) FollowObjects(out, &*object_tracker, &objects);
     spdlog::debug("frame {} {} inliers {} keyframe {}", i, ToString(r.state), r.inliers,
                   r.keyframe);
     if (run.after_frame) run.after_frame(r, slam);
@@ -712,7 +741,7 @@ RunSummary RunOnDataset(const RunOptions& options) {
   timings.Summarize(&summary);
   if (mask_evaluator) summary.masks = mask_evaluator->result();
 
-  WriteRunFiles(run, slam, resolved, log, feature_log, results, &summary);
+  WriteRunFiles(run, slam, resolved, log, feature_log, objects, results, &summary);
   CommitRun(run, &summary, &results);
 
   if (dataset.ground_truth()) Evaluate(*dataset.ground_truth(), run.mode, &summary);

@@ -10,6 +10,7 @@
 #include "sdoslam/eval/report.h"
 #include "sdoslam/io/dataset.h"
 #include "sdoslam/io/trajectory.h"
+#include "sdoslam/objects/object_tracker.h"
 #include "sdoslam/pipeline/pipeline.h"
 
 // The offline runner: a whole dataset through the Pipeline, its result set written and
@@ -44,6 +45,11 @@ struct RunOptions {
   // out/map.ply: the static map as a coloured point cloud at the end of the run
   // (System::StaticMapCloud).
   bool save_map = false;
+  // out/objects.csv and out/objects/<id>.txt: the moving objects of the label images with their
+  // ids, classes, centroids and own motions (objects/object_tracker.h). Reads what tracking
+  // produced and changes nothing in it.
+  bool save_objects = false;
+  ObjectTrackerOptions objects;
   // On a synthetic sequence (dynamic/ and instance/ folders beside the frames), score the
   // front end's masks against the ground truth (RunSummary::masks), not in conventional mode.
   // That reads two images a frame and compares them pixel by pixel, inside the frame loop: about
