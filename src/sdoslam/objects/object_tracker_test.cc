@@ -159,18 +159,19 @@ TEST(ObjectTracker, KeepsTheIdThroughAShortOcclusionAndGivesAFarRegionANewOne) {
 TEST(ObjectTracker, TakesTheClassOfTheBoxOverAKnownRegion) {
   const cv::Mat wall = Texture({640, 480}, 5), patch = Texture({150, 150}, 6);
   ObjectTracker tracker(TestCamera());
+  const Eigen::Isometry3d camera = Eigen::Isometry3d::Identity();
   Frame f = Render(wall, patch, -0.2, -0.1);
   const cv::Rect bounds = cv::boundingRect(f.labels);
   const std::vector<ClassHint> hints = {{"car", cv::Rect2f(0, 0, 50, 50)},
                                         {"person", cv::Rect2f(bounds)}};
   // Labelled moving-unknown (2): no class, whatever the boxes say.
-  EXPECT_EQ(tracker.Update(0, 0, f.gray, f.depth, f.labels, hints, {}, true)[0].class_name,
+  EXPECT_EQ(tracker.Update(0, 0, f.gray, f.depth, f.labels, hints, camera, true)[0].class_name,
             "unknown");
   f.labels.setTo(1, f.labels == 2);  // known movable
-  EXPECT_EQ(tracker.Update(1, 0.1, f.gray, f.depth, f.labels, hints, {}, true)[0].class_name,
+  EXPECT_EQ(tracker.Update(1, 0.1, f.gray, f.depth, f.labels, hints, camera, true)[0].class_name,
             "person");
   // Lost frames place nothing.
-  EXPECT_TRUE(tracker.Update(2, 0.2, f.gray, f.depth, f.labels, hints, {}, false).empty());
+  EXPECT_TRUE(tracker.Update(2, 0.2, f.gray, f.depth, f.labels, hints, camera, false).empty());
 }
 
 TEST(ObjectTrackerOptions, NamesTheBadSetting) {
