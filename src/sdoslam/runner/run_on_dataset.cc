@@ -562,10 +562,44 @@ void CheckOracleMasks(const std::filesystem::path& dataset,
   }
 }
 
+// The moving objects of frame `out` (its label image), added to `objects`; returns how many.
+size_t FollowObjects(const FrameOutput& out, ObjectTracker* tracker,
+                     std::vector<ObjectObservation>* objects) {
+  const TrackingResult& r = out.tracking;
+  std::vector<ClassHint> hints;
+  if (out.sdo) {
+    for (const Detection& d : out.sdo->detections) hints.push_back({d.class_name, d.box});
+  }
+  cv::Mat gray;
+  cv::cvtColor(out.input.bgr, gray, cv::COLOR_BGR2GRAY);
+  std::vector<ObjectObservation> seen =
+      tracker->Update(r.index, r.timestamp, gray, out.input.depth, out.labels, hints,
+                      r.T_camera_world.inverse(), r.state == TrackingState::kOk);
+  for (ObjectObservation& o : seen) objects->push_back(std::move(o));
+  return seen.size();
+}
+
+// Each object's id (and class) written on `overlay` at its centroid.
+void DrawObjectIds(const Camera& camera, const std::vector<ObjectObservation>& objects,
+                   cv::Mat* overlay) {
+  for (const ObjectObservation& o : objects) {
+    if (o.centroid_camera.z() <= 0) continue;
+    Eigen::Vector2d uv = camera.Project(o.centroid_camera);
+    if (camera.HasDistortion()) uv = camera.Distort(uv);
+    const cv::Point at(static_cast<int>(uv.x()), static_cast<int>(uv.y()));
+    const std::string text =
+        fmt::format("#{}{}", o.id, o.class_name == "unknown" ? "" : " " + o.class_name);
+    cv::putText(*overlay, text, at, cv::FONT_HERSHEY_SIMPLEX, 0.6, cv::Scalar(0, 0, 0), 3);
+    cv::putText(*overlay, text, at, cv::FONT_HERSHEY_SIMPLEX, 0.6, cv::Scalar(255, 255, 255), 1);
+  }
+}
+
 // Frame `index`'s overlay and mask (`name`: its image's file name), as the run asks for them;
-// the mask's features go to `feature_log` (features.csv).
+// the mask's features go to `feature_log` (features.csv). `objects`: the frame's, labelled on the
+// overlay.
 void SaveFrameImages(const RunOptions& run, const ResultSetWriter& results, size_t index,
-                     const std::string& name, const FrameOutput& out, std::string* feature_log) {
+                     const std::string& name, const FrameOutput& out,
+                     const std::vector<ObjectObservation>& objects, std::string* feature_log) {
   const TrackingResult& r = out.tracking;
   const cv::Mat& labels = out.labels;
   const cv::Size image_size(run.camera.width, run.camera.height);
@@ -573,9 +607,10 @@ void SaveFrameImages(const RunOptions& run, const ResultSetWriter& results, size
       (run.overlay_frames.empty() || std::find(run.overlay_frames.begin(), run.overlay_frames.end(),
                                                index) != run.overlay_frames.end())) {
     const cv::Mat empty_labels(image_size, CV_8U, cv::Scalar(0));
-    const cv::Mat overlay =
+    cv::Mat overlay =
         DrawOverlay(out.input.bgr, labels.empty() ? empty_labels : labels,
                     out.sdo ? &*out.sdo : nullptr, r.feature_points, r.feature_labels);
+    DrawObjectIds(Camera(run.camera), objects, &overlay);
     const auto path = results.Stage("overlays/" + name);
     if (!cv::imwrite(path.string(), overlay)) throw IoError(path.string() + ": cannot write");
   }
@@ -589,22 +624,6 @@ void SaveFrameImages(const RunOptions& run, const ResultSetWriter& results, size
                                   r.feature_points[k].y, r.feature_labels[k]);
     }
   }
-}
-
-// The moving objects of frame `out` (its label image) added to `objects`.
-void FollowObjects(const FrameOutput& out, ObjectTracker* tracker,
-                   std::vector<ObjectObservation>* objects) {
-  const TrackingResult& r = out.tracking;
-  std::vector<ClassHint> hints;
-  if (out.sdo) {
-    for (const Detection& d : out.sdo->detections) hints.push_back({d.class_name, d.box});
-  }
-  cv::Mat gray;
-  cv::cvtColor(out.input.bgr, gray, cv::COLOR_BGR2GRAY);
-  for (ObjectObservation& o :
-       tracker->Update(r.index, r.timestamp, gray, out.input.depth, out.labels, hints,
-                       r.T_camera_world.inverse(), r.state == TrackingState::kOk))
-    objects->push_back(std::move(o));
 }
 
 // The run's files (trajectories, config, logs, the map when asked for) staged in `results`.
@@ -724,8 +743,10 @@ RunSummary RunOnDataset(const RunOptions& options) {
     if (!labels.empty() && mask_evaluator) {
       mask_evaluator->AddFrame(rgb_paths[i], labels, r.feature_points, r.feature_labels);
     }
-    SaveFrameImages(run, results, i, rgb_paths[i].filename().string(), out, &feature_log);
-    if (object_tracker) FollowObjects(out, &*object_tracker, &objects);
+    const size_t seen = object_tracker ? FollowObjects(out, &*object_tracker, &objects) : 0;
+    SaveFrameImages(run, results, i, rgb_paths[i].filename().string(), out,
+                    {objects.end() - static_cast<std::ptrdiff_t>(seen), objects.end()},
+                    &feature_log);
     spdlog::debug("frame {} {} inliers {} keyframe {}", i, ToString(r.state), r.inliers,
                   r.keyframe);
     if (run.after_frame) run.after_frame(r, slam);
