@@ -352,39 +352,36 @@ void ObjectTracker::SplitMergedRegions(const std::vector<FollowedPoints>& follow
       continue;
     }
     // Two objects that came together in the image, each pixel to the object whose followed
-    // point lies nearest (the label of the nearest seed, by distance transform).
-    cv::Mat not_seed(labels.size(), CV_8U, cv::Scalar(255));
-    std::vector<size_t> seed_track;
+    // point lies nearest (the label of the nearest seed, by distance transform), within the
+    // region's bounds.
+    const cv::Rect box = region.box;
+    cv::Mat not_seed(box.size(), CV_8U, cv::Scalar(255));
+    cv::Mat owner(box.size(), CV_32S, cv::Scalar(-1));  // the track of each seed
     for (size_t t : voters[r]) {
       for (const cv::Point2f& p : followed[t].now) {
         const cv::Point q(cvRound(p.x), cvRound(p.y));
-        if (region_at.at<int>(q) == static_cast<int>(r)) not_seed.at<uint8_t>(q) = 0;
+        if (region_at.at<int>(q) != static_cast<int>(r)) continue;
+        not_seed.at<uint8_t>(q - box.tl()) = 0;
+        owner.at<int>(q - box.tl()) = static_cast<int>(t);
       }
     }
     cv::Mat distance, nearest;
     cv::distanceTransform(not_seed, distance, nearest, cv::DIST_L2, cv::DIST_MASK_5,
                           cv::DIST_LABEL_PIXEL);
-    // DIST_LABEL_PIXEL numbers the seeds in scan order: which track each is.
+    // DIST_LABEL_PIXEL numbers the seeds 1, 2, ... in scan order.
     std::vector<int> track_of_label(1, -1);
-    for (int y = 0; y < not_seed.rows; ++y) {
-      for (int x = 0; x < not_seed.cols; ++x) {
-        if (not_seed.at<uint8_t>(y, x) != 0) continue;
-        int owner = -1;
-        for (size_t t : voters[r]) {
-          for (const cv::Point2f& p : followed[t].now) {
-            if (cvRound(p.x) == x && cvRound(p.y) == y) owner = static_cast<int>(t);
-          }
-        }
-        track_of_label.push_back(owner);
+    for (int y = 0; y < box.height; ++y) {
+      for (int x = 0; x < box.width; ++x) {
+        if (not_seed.at<uint8_t>(y, x) == 0) track_of_label.push_back(owner.at<int>(y, x));
       }
     }
     for (size_t t : voters[r]) {
       cv::Mat part(labels.size(), CV_8U, cv::Scalar(0));
-      for (int y = region.box.y; y < region.box.y + region.box.height; ++y) {
-        const uint8_t* m = region.mask.ptr<uint8_t>(y);
+      for (int y = 0; y < box.height; ++y) {
+        const uint8_t* m = region.mask.ptr<uint8_t>(box.y + y) + box.x;
         const int* label = nearest.ptr<int>(y);
-        uint8_t* out = part.ptr<uint8_t>(y);
-        for (int x = region.box.x; x < region.box.x + region.box.width; ++x)
+        uint8_t* out = part.ptr<uint8_t>(box.y + y) + box.x;
+        for (int x = 0; x < box.width; ++x)
           out[x] = m[x] && track_of_label[static_cast<size_t>(label[x])] == static_cast<int>(t)
                        ? 255
                        : 0;
