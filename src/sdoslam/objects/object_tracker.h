@@ -49,7 +49,25 @@ struct ObjectTrackerOptions {
   int min_motion_points = 10;
   double pixel_sigma = 0.5;
   uint32_t seed = 1;  // RANSAC's; with the frame's index, the same objects every run
-  void Check() const;
+  void Check() const;  // Error names the setting as objects.<key>
+  // Every setting, as its key in a run config's objects: section.
+  template <class Options, class Visitor>
+  static void VisitFields(Options& o, Visitor&& visit) {
+    visit("work_scale", o.work_scale);
+    visit("close_px", o.close_px);
+    visit("min_pixels", o.min_pixels);
+    visit("depth_step", o.depth_step);
+    visit("min_votes", o.min_votes);
+    visit("gate_m", o.gate_m);
+    visit("max_missed_frames", o.max_missed_frames);
+    visit("max_corners", o.max_corners);
+    visit("max_round_trip_px", o.max_round_trip_px);
+    visit("inlier_m", o.inlier_m);
+    visit("inlier_per_m2", o.inlier_per_m2);
+    visit("min_motion_points", o.min_motion_points);
+    visit("pixel_sigma", o.pixel_sigma);
+    visit("seed", o.seed);
+  }
 };
 
 // A detection's class and box (full-image pixels): a region mostly labelled known takes the

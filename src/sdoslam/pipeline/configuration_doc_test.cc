@@ -1,4 +1,4 @@
-// docs/configuration.md against the options: every setting of the SLAM sections and of dynamic:
+// docs/configuration.md against the options: every setting of the SLAM sections, dynamic: and objects:
 // is in its YAML blocks with its default, and every key there is a setting. A setting added,
 // renamed or given a new default without the reference fails here.
 
@@ -12,6 +12,7 @@
 #include <string>
 
 #include "sdoslam/dynamic/front_end.h"
+#include "sdoslam/objects/object_tracker.h"
 #include "sdoslam/slam/system.h"
 #include "sdoslam/testing/options_test_util.h"
 #include "sdoslam/testing/test_util.h"
@@ -82,6 +83,8 @@ TEST(ConfigurationReference, ShowsEverySettingWithItsDefaultAndNothingElse) {
   std::map<std::string, std::string> settings = testing::FieldValues(SlamOptions());
   for (const auto& [path, value] : testing::FieldValues(FrontEndOptions()))
     settings["dynamic." + path] = value;
+  for (const auto& [path, value] : testing::FieldValues(ObjectTrackerOptions()))
+    settings["objects." + path] = value;
   for (const auto& [path, value] : settings) {
     SCOPED_TRACE(path);
     const auto it = documented.find(path);

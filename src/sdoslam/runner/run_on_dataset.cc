@@ -68,6 +68,15 @@ RunOptions LoadRunConfig(const std::filesystem::path& config) {
     section->Read("camera_rate", &run.camera_rate);
     section->RejectUnknownKeys();
   }
+  if (std::optional<ConfigMap> section = root.Section("objects")) {
+    ReadFields(*section, &run.objects);
+    section->RejectUnknownKeys();
+    try {
+      run.objects.Check();
+    } catch (const Error& e) {
+      throw Error(config.string() + ": " + e.what());
+    }
+  }
   if (std::optional<ConfigMap> versions = root.Section("versions")) {
     // Informative: what wrote the file. Read so that it is not an unknown key.
     std::string ignored;
@@ -121,6 +130,11 @@ std::string ResolvedConfig(const RunOptions& run) {
   WriteCameraOptions(run.camera, &resolved);
   WriteSlamOptions(run.slam, &resolved);
   if (run.mode == RunMode::kSdo) WriteFrontEndOptions(run.front_end, &resolved);
+  if (run.save_objects) {
+    resolved << YAML::Key << "objects" << YAML::Value << YAML::BeginMap;
+    WriteFields(run.objects, &resolved);
+    resolved << YAML::EndMap;
+  }
   resolved << YAML::Key << "versions" << YAML::Value << YAML::BeginMap;
   resolved << YAML::Key << "sdoslam" << YAML::Value << SDOSLAM_VERSION;
   resolved << YAML::Key << "opencv" << YAML::Value << CV_VERSION;

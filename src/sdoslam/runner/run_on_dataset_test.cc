@@ -1179,6 +1179,24 @@ TEST(PipelineOutputs, EachSwingingBoxIsFollowedUnderOneIdWithItsOwnMotion) {
   }
 }
 
+// A run config's objects: section sets the object tracker; a bad value names its key and file.
+TEST(PipelineOutputs, TheObjectsSectionIsReadAndCheckedByKey) {
+  testing::TempDir dir;
+  const std::string camera = testing::ReadText(testing::SourceDir() / "configs" / "tum_fr2.yaml");
+  testing::WriteText(dir / "good.yaml", camera + "objects: {min_votes: 7, gate_m: 0.25}\n");
+  const RunOptions run = LoadRunConfig(dir / "good.yaml");
+  EXPECT_EQ(run.objects.min_votes, 7);
+  EXPECT_EQ(run.objects.gate_m, 0.25);
+  EXPECT_EQ(run.objects.min_pixels, ObjectTrackerOptions().min_pixels);
+  testing::WriteText(dir / "bad.yaml", camera + "objects: {min_votes: 0}\n");
+  const std::string message = testing::MessageOf([&] { LoadRunConfig(dir / "bad.yaml"); });
+  EXPECT_NE(message.find("bad.yaml"), std::string::npos) << message;
+  EXPECT_NE(message.find("objects.min_votes"), std::string::npos) << message;
+  testing::WriteText(dir / "unknown.yaml", camera + "objects: {min_vote: 3}\n");
+  EXPECT_NE(testing::MessageOf([&] { LoadRunConfig(dir / "unknown.yaml"); }).find("min_vote"),
+            std::string::npos);
+}
+
 // mapping.csv names why a keyframe got no local BA: `spaced` when one ran fewer than
 // min_frames_between_local_ba frames before, `skipped` only when it gave way to a waiting
 // keyframe, which a sequential run never does. With a spacing longer than the walk, every
