@@ -213,16 +213,21 @@ std::optional<ObjectTracker::Region> ObjectTracker::MakeRegion(
 ObjectTracker::FollowedPoints ObjectTracker::FollowPoints(
     const cv::Mat& previous_mask, const cv::Mat& gray, const std::vector<cv::Mat>& pyramid) const {
   FollowedPoints f;
-  // Corners within the region's bounds only: the corner response of the whole image per object
-  // cost milliseconds.
+  // Corners within the region's bounds only, found at half resolution (the pyramid's level 1):
+  // the corner response of the whole image per object cost milliseconds, and Lucas–Kanade
+  // settles a point on the full image anyway.
   const cv::Rect bounds = cv::boundingRect(previous_mask);
-  if (bounds.area() == 0) return f;
+  const cv::Rect half(bounds.x / 2, bounds.y / 2, bounds.width / 2, bounds.height / 2);
+  if (half.area() == 0) return f;
+  const cv::Mat half_image = previous_pyramid_[2];  // level 1 (level 0's derivatives between)
+  cv::Mat half_mask;
+  cv::resize(previous_mask(cv::Rect(half.x * 2, half.y * 2, half.width * 2, half.height * 2)),
+             half_mask, half.size(), 0, 0, cv::INTER_NEAREST);
   std::vector<cv::Point2f> before;
-  cv::goodFeaturesToTrack(previous_gray_(bounds), before, options_.max_corners, 0.01, 5,
-                          previous_mask(bounds));
+  cv::goodFeaturesToTrack(half_image(half), before, options_.max_corners, 0.002, 3, half_mask);
   if (before.empty()) return f;
   for (cv::Point2f& p : before)
-    p += cv::Point2f(static_cast<float>(bounds.x), static_cast<float>(bounds.y));
+    p = 2.0f * (p + cv::Point2f(static_cast<float>(half.x), static_cast<float>(half.y)));
   std::vector<cv::Point2f> now, back;
   std::vector<uint8_t> found, found_back;
   std::vector<float> error;
