@@ -434,17 +434,7 @@ void WriteOmdVicon(const std::filesystem::path& tum, const Trajectory& ground_tr
   AddViconRows("sensor_payload", apparatus, times, &rows);
   const std::filesystem::path objects_file = tum / "object_poses.txt";
   if (std::filesystem::exists(objects_file)) {
-    std::map<int, Trajectory> objects;
-    ForEachDataLine(objects_file, [&](int number, const std::vector<std::string>& tokens) {
-      if (tokens.size() != 9)
-        throw Error(Where(objects_file, number) + "expected timestamp id tx ty tz qx qy qz qw");
-      double v[9];
-      for (size_t c = 0; c < 9; ++c) v[c] = ParseDouble(tokens[c], objects_file, number, "value");
-      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-      T.linear() = Eigen::Quaterniond(v[8], v[5], v[6], v[7]).normalized().toRotationMatrix();
-      T.translation() = Eigen::Vector3d(v[2], v[3], v[4]);
-      objects[static_cast<int>(v[1])].push_back({v[0], T});
-    });
+    const std::map<int, Trajectory> objects = ReadObjectPoses(objects_file);
     for (const auto& [id, trajectory] : objects)
       AddViconRows("object_" + std::to_string(id), trajectory, times, &rows);
   }

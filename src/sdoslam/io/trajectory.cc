@@ -29,6 +29,26 @@ std::optional<Eigen::Isometry3d> InterpolatePose(const Trajectory& trajectory, d
   return T;
 }
 
+std::map<int, Trajectory> ReadObjectPoses(const std::filesystem::path& path) {
+  std::map<int, Trajectory> objects;
+  ForEachDataLine(path, [&](int number, const std::vector<std::string>& tokens) {
+    if (tokens.size() != 9)
+      throw Error(Where(path, number) + "expected timestamp id tx ty tz qx qy qz qw");
+    double v[9];
+    for (size_t c = 0; c < 9; ++c) v[c] = ParseDouble(tokens[c], path, number, "value");
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = Eigen::Quaterniond(v[8], v[5], v[6], v[7]).normalized().toRotationMatrix();
+    T.translation() = Eigen::Vector3d(v[2], v[3], v[4]);
+    objects[static_cast<int>(v[1])].push_back({v[0], T});
+  });
+  for (auto& [id, trajectory] : objects) {
+    std::stable_sort(
+        trajectory.begin(), trajectory.end(),
+        [](const StampedPose& a, const StampedPose& b) { return a.timestamp < b.timestamp; });
+  }
+  return objects;
+}
+
 Trajectory ReadTumTrajectory(const std::filesystem::path& path,
                              const TrajectoryReadOptions& options) {
   Trajectory trajectory;

@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <filesystem>
+#include <map>
 #include <optional>
 #include <vector>
 
@@ -37,6 +38,11 @@ Trajectory ReadTumTrajectory(const std::filesystem::path& path,
 // must be sorted by time, as ReadTumTrajectory returns it.
 std::optional<Eigen::Isometry3d> InterpolatePose(const Trajectory& trajectory, double timestamp,
                                                  double max_gap);
+
+// Object poses as sdoslam synth writes them (object_poses.txt: "timestamp id tx ty tz qx qy qz
+// qw" per line, T_world_object), by object id, each in time order. Throws Error naming the file
+// and line of a malformed row.
+std::map<int, Trajectory> ReadObjectPoses(const std::filesystem::path& path);
 
 // Writes TUM format, timestamps with microsecond precision; atomically (see atomic_file.h).
 void WriteTumTrajectory(const std::filesystem::path& path, const Trajectory& trajectory);

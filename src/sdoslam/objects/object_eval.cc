@@ -12,6 +12,7 @@
 
 #include "sdoslam/core/error.h"
 #include "sdoslam/core/regular_file.h"
+#include "sdoslam/core/text_file.h"
 #include "sdoslam/eval/metrics.h"
 #include "sdoslam/io/png_reader.h"
 
@@ -25,12 +26,6 @@ void ObjectEvalOptions::Check() const {
 }
 
 namespace {
-
-std::string ReadText(const std::filesystem::path& path) {
-  const std::optional<std::string> text = ReadRegularFileIfExists(path);
-  if (!text) throw Error(path.string() + ": cannot open");
-  return *text;
-}
 
 struct Bodies {
   std::map<std::string, Trajectory> poses;
@@ -51,34 +46,12 @@ Bodies ReadBodies(const std::filesystem::path& sequence) {
         throw Error((sequence / "objects.json").string() + ": " + e.what());
       }
     }
-    std::istringstream lines(ReadText(object_poses));
-    std::string line;
-    size_t number = 0;
-    while (std::getline(lines, line)) {
-      ++number;
-      if (line.empty() || line[0] == '#') continue;
-      double t, id, x, y, z, qx, qy, qz, qw;
-      if (std::sscanf(line.c_str(), "%lf %lf %lf %lf %lf %lf %lf %lf %lf", &t, &id, &x, &y, &z, &qx,
-                      &qy, &qz, &qw) != 9) {
-        throw Error(fmt::format("{}:{}: expected timestamp id tx ty tz qx qy qz qw",
-                                object_poses.string(), number));
-      }
-      const int instance = static_cast<int>(id);
-      std::string name = names.count(instance) != 0 && !names[instance].empty()
-                             ? names[instance]
-                             : fmt::format("body_{}", instance);
-      StampedPose p;
-      p.timestamp = t;
-      p.T_world_camera.linear() =
-          Eigen::Quaterniond(qw, qx, qy, qz).normalized().toRotationMatrix();
-      p.T_world_camera.translation() = Eigen::Vector3d(x, y, z);
-      bodies.poses[name].push_back(p);
+    for (auto& [instance, trajectory] : ReadObjectPoses(object_poses)) {
+      const std::string name = names.count(instance) != 0 && !names[instance].empty()
+                                   ? names[instance]
+                                   : fmt::format("body_{}", instance);
+      bodies.poses[name] = std::move(trajectory);
       bodies.instance_id[name] = instance;
-    }
-    for (auto& [name, trajectory] : bodies.poses) {
-      std::stable_sort(
-          trajectory.begin(), trajectory.end(),
-          [](const StampedPose& a, const StampedPose& b) { return a.timestamp < b.timestamp; });
     }
     return bodies;
   }
@@ -149,21 +122,17 @@ std::map<std::string, std::vector<double>> FramesInView(const std::filesystem::p
   std::map<std::string, std::vector<double>> in_view;
   if (!std::filesystem::is_directory(sequence / "instance") || bodies.instance_id.empty())
     return in_view;
-  std::istringstream lines(ReadText(sequence / "rgb.txt"));
-  std::string line;
-  while (std::getline(lines, line)) {
-    if (line.empty() || line[0] == '#') continue;
-    std::istringstream in(line);
-    double t;
-    std::string file;
-    if (!(in >> t >> file)) continue;
-    const auto path = sequence / "instance" / std::filesystem::path(file).filename();
+  const auto list = sequence / "rgb.txt";
+  ForEachDataLine(list, [&](int number, const std::vector<std::string>& tokens) {
+    if (tokens.size() < 2) throw Error(Where(list, number) + "expected timestamp filename");
+    const double t = ParseTimestamp(tokens[0], list, number, "timestamp");
+    const auto path = sequence / "instance" / std::filesystem::path(tokens[1]).filename();
     const cv::Mat instance = ReadImage(path, cv::IMREAD_UNCHANGED);
     if (instance.empty()) throw Error(path.string() + ": cannot read the instance mask");
     for (const auto& [name, id] : bodies.instance_id) {
       if (cv::countNonZero(instance == id) >= min_pixels) in_view[name].push_back(t);
     }
-  }
+  });
   return in_view;
 }
 

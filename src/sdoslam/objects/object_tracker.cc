@@ -11,6 +11,7 @@
 
 #include "sdoslam/core/error.h"
 #include "sdoslam/optim/rigid_ransac.h"
+#include "sdoslam/tracking/scene_flow.h"
 
 namespace sdoslam {
 
@@ -58,10 +59,6 @@ namespace {
 // points settle in a few).
 constexpr int kWindow = 15, kLevels = 3, kIterations = 10;
 
-// The Kinect's axial depth noise (σ_z, metres) at depth z (Nguyen et al. 2012; as the scene-flow
-// check's defaults).
-double DepthSigma(double z) { return 0.0012 + 0.0019 * (z - 0.4) * (z - 0.4); }
-
 // One point's residuals for the motion G (quaternion, translation) taking its earlier position
 // `from` to where it is seen now: the projection against its pixel (px, over pixel_sigma) and
 // the depth against its depth (over both ends' depth noise).
@@ -91,7 +88,7 @@ Eigen::Isometry3d RefineMotion(const CameraOptions& c, const ObjectTrackerOption
   Eigen::Vector3d t = start.translation();
   ceres::Problem problem;
   for (size_t k = 0; k < from.size(); ++k) {
-    const double sigma = std::sqrt(2.0) * DepthSigma(to[k].z());
+    const double sigma = std::sqrt(2.0) * DepthNoiseSigma(SceneFlowOptions(), to[k].z());
     problem.AddResidualBlock(
         new ceres::AutoDiffCostFunction<MotionResidual, 3, 4, 3>(new MotionResidual{
             from[k], pixels[k], to[k].z(), o.pixel_sigma, sigma, c.fx, c.fy, c.cx, c.cy}),
@@ -405,7 +402,7 @@ std::vector<ObjectObservation> ObjectTracker::Update(size_t index, double timest
                                                      const Eigen::Isometry3d& T_world_camera,
                                                      bool tracked) {
   std::vector<ObjectObservation> out;
-  const bool has_previous = !previous_gray_.empty() && previous_index_ + 1 == index;
+  const bool has_previous = !previous_pyramid_.empty() && previous_index_ + 1 == index;
   std::vector<Region> regions;
   if (tracked && !labels.empty()) regions = FindRegions(depth, labels, hints);
   // Lucas–Kanade's pyramid of this frame, built once for every object (and kept for the next).
@@ -494,7 +491,6 @@ std::vector<ObjectObservation> ObjectTracker::Update(size_t index, double timest
   });
   previous_index_ = index;
   previous_timestamp_ = timestamp;
-  previous_gray_ = gray.clone();
   previous_pyramid_ = std::move(pyramid);
   previous_depth_ = depth.clone();
   return out;

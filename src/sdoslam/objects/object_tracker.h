@@ -41,14 +41,15 @@ struct ObjectTrackerOptions {
   // region now; a rigid motion fitted to their 3-D ends by RANSAC (optim/rigid_ransac.h: a point
   // an inlier within inlier_m + inlier_per_m2 · z² of the fit, z its depth, as the sensor's noise
   // grows with z²) and given when at least min_motion_points agree; its rotation refined on the
-  // points' pixels (pixel_sigma) and depths (the Kinect's noise at their depth).
+  // points' pixels (pixel_sigma) and depths (the Kinect's noise at their depth, as the scene-flow
+  // check models it: tracking/scene_flow.h, DepthNoiseSigma).
   int max_corners = 100;
   double max_round_trip_px = 1.0;
   double inlier_m = 0.01;
   double inlier_per_m2 = 0.005;
   int min_motion_points = 10;
   double pixel_sigma = 0.5;
-  uint32_t seed = 1;  // RANSAC's; with the frame's index, the same objects every run
+  uint32_t seed = 1;   // RANSAC's; with the frame's index, the same objects every run
   void Check() const;  // Error names the setting as objects.<key>
   // Every setting, as its key in a run config's objects: section.
   template <class Options, class Visitor>
@@ -155,7 +156,7 @@ class ObjectTracker {
   int next_id_ = 1;
   size_t previous_index_ = 0;
   double previous_timestamp_ = 0;
-  cv::Mat previous_gray_, previous_depth_;
+  cv::Mat previous_depth_;
   std::vector<cv::Mat> previous_pyramid_;
 };
 
