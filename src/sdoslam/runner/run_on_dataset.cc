@@ -277,6 +277,7 @@ const std::vector<CsvColumn<FrameRow>>& FrameColumns() {
       {"mapping_ms", [](R f) { return Ms(f.out.timing.mapping_ms); }},
       {"keyframes", [](R f) { return Plain(f.out.tracking.keyframes_alive); }},
       {"map_points", [](R f) { return Plain(f.out.tracking.map_points_alive); }},
+      {"check_samples", [](R f) { return Plain(f.out.tracking.check_samples); }},
       {"check_rough_samples", [](R f) { return Plain(f.out.tracking.check_rough_samples); }},
       {"check_static_samples", [](R f) { return Plain(f.out.tracking.check_static_samples); }},
       {"check_replaced", [](R f) { return Flag(f.out.tracking.check_replaced); }},

@@ -286,6 +286,7 @@ SceneFlowChecker::StaticWorld SceneFlowChecker::FindStaticWorld(
   const StaticMotionResult widest = map_lock.WithoutMapLock([&] {
     return FindStaticMotion(so, frame.geometry->intrinsics, correspondences, frame.T_camera_world);
   });
+  result->check_samples = static_cast<int>(correspondences.size());
   result->check_rough_samples = widest.rough_inliers;
   result->check_static_samples = widest.inliers;
   if (!widest.replaced) return world;

@@ -169,8 +169,10 @@ struct TrackingResult {
   // Features the front end selected by motion that the check found static and returned.
   int check_readmitted = 0;
   int culled_points = 0;
-  // Static motion (static_motion.h): grid samples the rough pose explains, samples the chosen
-  // pose explains, and whether the widest motion replaced the rough pose.
+  // Static motion (static_motion.h): grid samples followed back with depth at both ends, those
+  // the rough pose explains, those the chosen pose explains, and whether the widest motion
+  // replaced the rough pose.
+  int check_samples = 0;
   int check_rough_samples = 0;
   int check_static_samples = 0;
   bool check_replaced = false;
