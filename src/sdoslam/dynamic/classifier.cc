@@ -116,7 +116,13 @@ std::vector<SegmentStats> MeasureSegments(const cv::Mat& seg, int n, const cv::M
 // The pixels (255) of detection `det`'s object: the segment that best matches its box (`scale`:
 // from image to segment resolution) and those mostly inside it at its depth, none of them lying
 // behind its neighbours (known_min_in_front), labelled kKnownMovable in `segment_labels`; the
-// whole box when no segment matches it; nothing when the best match lies behind.
+// whole box when no segment matches it; nothing when the best match lies behind. A held box
+// (Detection::held) labels no bare box, and its best match is labelled whole, not clipped to
+// the box, unless it is over max_held_growth times the box: the box was placed by the flow
+// frames ago, and a person walking up outgrows it.
+// A held box's best segment is labelled whole up to this many times the box's area.
+constexpr double kMaxHeldGrowth = 2.0;
+
 cv::Mat DetectedObject(const Detection& det, const cv::Mat& seg, int n,
                        const std::vector<SegmentStats>& stats, double scale,
                        const SdoClassifierOptions& options, std::vector<uint8_t>* segment_labels) {
@@ -156,9 +162,11 @@ cv::Mat DetectedObject(const Detection& det, const cv::Mat& seg, int n,
     }
   }
   if (best < 0) {
-    if (!best_behind) member(box).setTo(255);
+    if (!best_behind && !det.held) member(box).setTo(255);
     return member;
   }
+  const bool whole_best =
+      det.held && stats[static_cast<size_t>(best)].area <= kMaxHeldGrowth * box.area();
   const float best_depth = stats[static_cast<size_t>(best)].median_depth;
   std::vector<uint8_t> joins(static_cast<size_t>(n), 0);
   for (int s = 0; s < n; ++s) {
@@ -179,6 +187,7 @@ cv::Mat DetectedObject(const Detection& det, const cv::Mat& seg, int n,
       if (row[x] >= 0 && joins[static_cast<size_t>(row[x])]) m[x] = 255;
     }
   }
+  if (whole_best) member.setTo(255, seg == best);
   return member;
 }
 
@@ -312,9 +321,19 @@ SdoResult SdoClassifier::Classify(const Segmentation& segments,
   result.segment_labels.assign(static_cast<size_t>(n), kStatic);
   cv::Mat known(work, CV_8U, cv::Scalar(0));
   const auto& movable = options_.movable_classes;
-  for (const Detection& det : detections) {
+  result.detection_extents.assign(detections.size(), cv::Rect2f());
+  for (size_t d = 0; d < detections.size(); ++d) {
+    const Detection& det = detections[d];
     if (std::find(movable.begin(), movable.end(), det.class_name) == movable.end()) continue;
-    known |= DetectedObject(det, seg, n, stats, scale, options_, &result.segment_labels);
+    const cv::Mat member =
+        DetectedObject(det, seg, n, stats, scale, options_, &result.segment_labels);
+    const cv::Rect extent = cv::boundingRect(member);
+    if (extent.area() > 0) {
+      result.detection_extents[d] = cv::Rect2f(
+          static_cast<float>(extent.x / scale), static_cast<float>(extent.y / scale),
+          static_cast<float>(extent.width / scale), static_cast<float>(extent.height / scale));
+    }
+    known |= member;
   }
   // Unknown objects: selected by motion boundaries, or remembered from the frames before.
   const int max_area = static_cast<int>(options_.max_segment_area * work.area());

@@ -122,7 +122,10 @@ struct SdoResult {
   Segmentation segments;                // at work resolution
   std::vector<uint8_t> segment_labels;  // DynamicLabel per segment
   std::vector<Detection> detections;    // image pixels
-  cv::Mat boundary_mask;                // CV_8U at work resolution, 255 = motion boundary
+  // Per detection: the extent (image pixels) of the pixels it labelled; empty where it labelled
+  // nothing. A held detection's box follows it (DetectionHold::Follow).
+  std::vector<cv::Rect2f> detection_extents;
+  cv::Mat boundary_mask;  // CV_8U at work resolution, 255 = motion boundary
   // CV_8U at image size, 255 where a static feature makes no map point (seen moving within
   // unmapped_frames); empty when unmapped_frames is 0.
   cv::Mat unmapped;

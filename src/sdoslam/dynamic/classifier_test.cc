@@ -128,6 +128,41 @@ TEST(SdoClassifier, BoxWithoutAMatchingSegmentIsLabelledItself) {
   EXPECT_EQ(Count(r.labels, kKnownMovable), 20 * 30);
 }
 
+// A held box (the detector stopped reporting it; DetectionHold carries it on): placed by the
+// flow frames ago, it covers only part of a person who has walked up. Its best match is
+// labelled whole, and its extent is reported for the box to follow; a fresh box stays clipped.
+// A held box with no segment in front labels nothing, not the bare box.
+TEST(SdoClassifier, AHeldBoxLabelsItsWholeSegmentAndNeverTheBareBox) {
+  Scene s;
+  Detection part{0, "person", 0.9f, cv::Rect2f(20, 30, 30, 40)};  // the top two thirds of A
+  const SdoResult fresh =
+      SdoClassifier(ExactOptions())
+          .Classify(s.segments, {part}, cv::Mat(), cv::Mat(), s.depth, {160, 120});
+  EXPECT_EQ(Count(fresh.labels, kKnownMovable), 30 * 40);
+  part.held = true;
+  const SdoResult held =
+      SdoClassifier(ExactOptions())
+          .Classify(s.segments, {part}, cv::Mat(), cv::Mat(), s.depth, {160, 120});
+  EXPECT_EQ(Count(held.labels, kKnownMovable), s.a.area());
+  ASSERT_EQ(held.detection_extents.size(), 1u);
+  EXPECT_EQ(cv::Rect(held.detection_extents[0]), s.a);
+  // A held box far smaller than its best match (over twice its area) labels only what it covers.
+  Detection speck{0, "person", 0.9f, cv::Rect2f(20, 30, 15, 20), true};
+  const SdoResult small =
+      SdoClassifier(ExactOptions())
+          .Classify(s.segments, {speck}, cv::Mat(), cv::Mat(), s.depth, {160, 120});
+  EXPECT_EQ(Count(small.labels, kKnownMovable), 15 * 20);
+  // No segment found: a fresh box is labelled itself, a held one labels nothing and reports no
+  // extent (its hold ends).
+  s.segments.labels.setTo(-1);
+  Detection empty{16, "dog", 0.8f, cv::Rect2f(60, 10, 20, 30), true};
+  const SdoResult none =
+      SdoClassifier(ExactOptions())
+          .Classify(s.segments, {empty}, cv::Mat(), cv::Mat(), s.depth, {160, 120});
+  EXPECT_EQ(Count(none.labels, kKnownMovable), 0);
+  EXPECT_EQ(none.detection_extents[0].area(), 0.0f);
+}
+
 TEST(SdoClassifier, MotionBoundaryOnAnOutlineSelectsTheObjectNotTheWallBehindIt) {
   Scene s;
   SdoClassifier classifier(ExactOptions());

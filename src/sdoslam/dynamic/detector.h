@@ -17,6 +17,9 @@ struct Detection {
   std::string class_name;  // COCO name
   float score = 0;
   cv::Rect2f box;  // pixels of the full image
+  // Carried on after the detector frame that last reported it (DetectionHold): it labels only
+  // segments in front of their surroundings, never the bare box, and follows their extent.
+  bool held = false;
 };
 
 class Detector {

@@ -177,6 +177,7 @@ void FrontEndOptions::Check() const {
   geometric.Check("dynamic.segmenter.geometric.");
   yoloseg.Check("dynamic.segmenter.yoloseg.");
   detection.Check("dynamic.detector.");
+  hold.Check("dynamic.detector.");
   hog.Check("dynamic.detector.hog.");
   flow_options.Check("dynamic.flow.");
   boundaries.Check("dynamic.boundaries.");
@@ -216,7 +217,10 @@ void WriteFrontEndOptions(const FrontEndOptions& o, YAML::Emitter* out) {
 FrontEnd::FrontEnd(const FrontEndOptions& options, const std::filesystem::path& dataset_folder,
                    cv::Size image_size, const std::vector<std::filesystem::path>& rgb_paths,
                    const cv::Matx33d& K)
-    : options_(options), image_size_(image_size), classifier_(options.classifier) {
+    : options_(options),
+      image_size_(image_size),
+      classifier_(options.classifier),
+      detections_(options.hold) {
   options_.Check();
   if (options_.segmenter == "rgbd") {
     segmenter_ = std::make_unique<RgbdSegmenter>(options_.rgbd);
@@ -283,11 +287,12 @@ SdoResult FrontEnd::Process(const FrontEndFrame& frame, FrontEndTiming* timing) 
   t.flow_ms = MsSince(start);
 
   start = std::chrono::steady_clock::now();
-  if (frames_ % static_cast<size_t>(options_.detect_every) == 0) {
-    last_detections_ = detector_->Detect(frame);
-  } else {
-    ShiftByFlow(flow, flow_span, frame.depth, image_size_, &last_detections_);
-  }
+  // The boxes in force follow the flow to this frame; on a detector frame fresh boxes replace
+  // those they continue, and the others are held a while (DetectionHold).
+  if (frames_ % static_cast<size_t>(options_.detect_every) != 0) detections_.Skip();
+  ShiftByFlow(flow, flow_span, frame.depth, image_size_, &detections_.Boxes());
+  if (frames_ % static_cast<size_t>(options_.detect_every) == 0)
+    detections_.Observe(detector_->Detect(frame));
   t.detect_ms = MsSince(start);
 
   start = std::chrono::steady_clock::now();
@@ -301,8 +306,9 @@ SdoResult FrontEnd::Process(const FrontEndFrame& frame, FrontEndTiming* timing) 
   t.segment_ms = MsSince(start);
 
   start = std::chrono::steady_clock::now();
-  SdoResult result =
-      classifier_.Classify(segments, last_detections_, boundaries, flow, frame.depth, image_size_);
+  SdoResult result = classifier_.Classify(segments, detections_.Boxes(), boundaries, flow,
+                                          frame.depth, image_size_);
+  detections_.Follow(result.detection_extents);
   t.classify_ms = MsSince(start);
   previous_flow_inputs_.push_back(std::move(flow_input));
   if (static_cast<int>(previous_flow_inputs_.size()) > options_.flow_options.frame_gap)

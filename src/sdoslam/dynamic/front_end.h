@@ -9,6 +9,7 @@
 
 #include "sdoslam/core/config.h"
 #include "sdoslam/dynamic/classifier.h"
+#include "sdoslam/dynamic/detection_hold.h"
 #include "sdoslam/dynamic/detector.h"
 #include "sdoslam/dynamic/flow.h"
 #include "sdoslam/dynamic/geometric_segmenter.h"
@@ -46,6 +47,7 @@ struct FrontEndOptions {
   // 4th loses much more IoU (docs/performance.md, Trading accuracy for speed).
   int detect_every = 2;
   DetectorOptions detection;
+  DetectionHoldOptions hold;
   HogDetectorOptions hog;
 
   std::string flow = "dis";  // dis | farneback | onnx
@@ -78,6 +80,7 @@ struct FrontEndOptions {
             v("file", o.detections_file);
             v("every", o.detect_every);
             DetectorOptions::VisitFields(o.detection, v);
+            DetectionHoldOptions::VisitFields(o.hold, v);
             v("hog", o.hog);
           }});
     visit("flow", OptionGroup{[&](auto&& v) {
@@ -133,7 +136,7 @@ class FrontEnd {
   // The last flow_options.frame_gap images as the flow takes them (FlowEstimator::Prepare),
   // oldest first: each frame is converted once, not once for every pair it is part of.
   std::deque<cv::Mat> previous_flow_inputs_;
-  std::vector<Detection> last_detections_;
+  DetectionHold detections_;  // the boxes in force, held while the detector misses them
   Segmentation last_segments_;
   size_t frames_ = 0;
 };

@@ -185,6 +185,65 @@ TEST(FrontEndDetectEvery, CarriedBoxesFollowTheirObjectFrameByFrame) {
   }
 }
 
+// detector.hold_frames: a person walks in (boxed by the detector on frames 0-5), stops and
+// stands still with the detector missing it (frames 6-29), then is gone (30-33). The held box
+// keeps the person labelled through the stand and ends when the person has left; without the
+// hold the still person is static from the first missed detector frame on.
+TEST(FrontEndDetectionHold, AStillPersonTheDetectorMissesStaysLabelledUntilItLeaves) {
+  testing::TempDir dir;
+  const cv::Size size(640, 480);
+  cv::RNG rng(7);
+  const cv::Mat wall = SmoothTexture(size, rng), body = SmoothTexture({100, 200}, rng);
+  auto box_of = [](int k) { return cv::Rect(150 + 8 * std::min(k, 6), 140, 100, 200); };
+  const int frames = 34;
+  std::vector<std::filesystem::path> rgb_paths;
+  nlohmann::json detections = {{"frames", nlohmann::json::array()}};
+  for (int k = 0; k < frames; ++k) {
+    rgb_paths.push_back(dir / fmt::format("{}.png", k));
+    const cv::Rect b = box_of(k);
+    nlohmann::json boxes = nlohmann::json::array();
+    if (k < 6) boxes.push_back({{"class", "person"}, {"box", {b.x, b.y, b.width, b.height}}});
+    detections["frames"].push_back(
+        {{"rgb", rgb_paths.back().filename().string()}, {"detections", boxes}});
+  }
+  std::ofstream(dir / "detections.json") << detections.dump();
+  for (const int hold_frames : {300, 0}) {
+    FrontEndOptions o;
+    o.detector = "file";
+    o.detections_file = dir / "detections.json";
+    o.hold.hold_frames = hold_frames;
+    FrontEnd front_end(o, dir.path(), size, rgb_paths,
+                       cv::Matx33d(525, 0, 320, 0, 525, 240, 0, 0, 1));
+    for (int k = 0; k < frames; ++k) {
+      FrontEndFrame f;
+      f.index = static_cast<size_t>(k);
+      f.rgb_path = rgb_paths[static_cast<size_t>(k)];
+      f.bgr = wall.clone();
+      f.depth = cv::Mat(size, CV_32F, cv::Scalar(3.0f));
+      if (k < 30) {
+        body.copyTo(f.bgr(box_of(k)));
+        f.depth(box_of(k)).setTo(1.5f);
+      }
+      const SdoResult r = front_end.Process(f);
+      const int known = cv::countNonZero(r.labels == kKnownMovable);
+      const int on_body = cv::countNonZero(r.labels(box_of(k)) == kKnownMovable);
+      SCOPED_TRACE(fmt::format("hold_frames {}, frame {}", hold_frames, k));
+      if (k < 6) {
+        EXPECT_GE(on_body, box_of(k).area() * 9 / 10);
+      } else if (k >= 8 && k < 30) {
+        if (hold_frames > 0) {
+          EXPECT_GE(on_body, box_of(k).area() * 9 / 10);
+          EXPECT_LE(known, box_of(k).area() * 12 / 10) << "the label spread off the body";
+        } else {
+          EXPECT_EQ(known, 0);
+        }
+      } else if (k >= 31) {
+        EXPECT_EQ(known, 0) << "held on after the person left";
+      }
+    }
+  }
+}
+
 // segmenter.every: a uniform flow of (9, -6) flow pixels over 3 frames moves each label a third
 // of it a frame, scaled from the flow's size to the labels' (here the labels are twice as wide).
 TEST(CarrySegmentsAlongFlow, EachPixelTakesTheLabelOfWhereItWasAFrameBefore) {
