@@ -5,6 +5,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <fstream>
+#include <functional>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
@@ -128,6 +129,41 @@ cv::Mat SmoothTexture(cv::Size size, cv::RNG& rng) {
   return texture;
 }
 
+// Writes `dir`/detections.json for `frames` frames named <k>.png: a person boxed at box_of(k)
+// where `boxed(k)`. Returns the frames' image paths.
+std::vector<std::filesystem::path> WritePersonBoxes(const std::filesystem::path& dir, int frames,
+                                                    const std::function<cv::Rect(int)>& box_of,
+                                                    const std::function<bool(int)>& boxed) {
+  std::vector<std::filesystem::path> rgb_paths;
+  nlohmann::json detections = {{"frames", nlohmann::json::array()}};
+  for (int k = 0; k < frames; ++k) {
+    rgb_paths.push_back(dir / fmt::format("{}.png", k));
+    const cv::Rect b = box_of(k);
+    nlohmann::json boxes = nlohmann::json::array();
+    if (boxed(k)) boxes.push_back({{"class", "person"}, {"box", {b.x, b.y, b.width, b.height}}});
+    detections["frames"].push_back(
+        {{"rgb", rgb_paths.back().filename().string()}, {"detections", boxes}});
+  }
+  std::ofstream(dir / "detections.json") << detections.dump();
+  return rgb_paths;
+}
+
+// Frame k of a textured `block` at `box` (1.5 m) before a textured `wall` (3 m); the wall alone
+// where `box` is empty.
+FrontEndFrame BlockOnWall(int k, const std::filesystem::path& rgb_path, const cv::Mat& wall,
+                          const cv::Mat& block, const cv::Rect& box) {
+  FrontEndFrame f;
+  f.index = static_cast<size_t>(k);
+  f.rgb_path = rgb_path;
+  f.bgr = wall.clone();
+  f.depth = cv::Mat(wall.size(), CV_32F, cv::Scalar(3.0f));
+  if (box.area() > 0) {
+    block.copyTo(f.bgr(box));
+    f.depth(box).setTo(1.5f);
+  }
+  return f;
+}
+
 // detector.every: on the frames between detections, a box follows its object by the flow of one
 // frame, though the flow spans flow.frame_gap frames. A textured block moves 6 px a frame over a
 // textured wall; the detections file boxes it exactly on every frame, and the detector runs on
@@ -139,16 +175,8 @@ TEST(FrontEndDetectEvery, CarriedBoxesFollowTheirObjectFrameByFrame) {
   const cv::Mat wall = SmoothTexture(size, rng), block = SmoothTexture({100, 160}, rng);
   auto box_of = [](int k) { return cv::Rect(120 + 6 * k, 150, 100, 160); };
   const int frames = 10;
-  std::vector<std::filesystem::path> rgb_paths;
-  nlohmann::json detections = {{"frames", nlohmann::json::array()}};
-  for (int k = 0; k < frames; ++k) {
-    rgb_paths.push_back(dir / fmt::format("{}.png", k));
-    const cv::Rect b = box_of(k);
-    detections["frames"].push_back(
-        {{"rgb", rgb_paths.back().filename().string()},
-         {"detections", {{{"class", "person"}, {"box", {b.x, b.y, b.width, b.height}}}}}});
-  }
-  std::ofstream(dir / "detections.json") << detections.dump();
+  const std::vector<std::filesystem::path> rgb_paths =
+      WritePersonBoxes(dir.path(), frames, box_of, [](int) { return true; });
   FrontEndOptions o;
   o.detector = "file";
   o.detections_file = dir / "detections.json";
@@ -156,14 +184,8 @@ TEST(FrontEndDetectEvery, CarriedBoxesFollowTheirObjectFrameByFrame) {
   FrontEnd front_end(o, dir.path(), size, rgb_paths,
                      cv::Matx33d(525, 0, 320, 0, 525, 240, 0, 0, 1));
   for (int k = 0; k < frames; ++k) {
-    FrontEndFrame f;
-    f.index = static_cast<size_t>(k);
-    f.rgb_path = rgb_paths[static_cast<size_t>(k)];
-    f.bgr = wall.clone();
-    block.copyTo(f.bgr(box_of(k)));
-    f.depth = cv::Mat(size, CV_32F, cv::Scalar(3.0f));
-    f.depth(box_of(k)).setTo(1.5f);
-    const SdoResult r = front_end.Process(f);
+    const SdoResult r = front_end.Process(
+        BlockOnWall(k, rgb_paths[static_cast<size_t>(k)], wall, block, box_of(k)));
     ASSERT_EQ(r.detections.size(), 1u) << "frame " << k;
     const cv::Rect2f& got = r.detections[0].box;
     // Within half a frame's motion (3 px; a pixel of the 256 px flow is 2.5): a box left where
@@ -196,17 +218,8 @@ TEST(FrontEndDetectionHold, AStillPersonTheDetectorMissesStaysLabelledUntilItLea
   const cv::Mat wall = SmoothTexture(size, rng), body = SmoothTexture({100, 200}, rng);
   auto box_of = [](int k) { return cv::Rect(150 + 8 * std::min(k, 6), 140, 100, 200); };
   const int frames = 34;
-  std::vector<std::filesystem::path> rgb_paths;
-  nlohmann::json detections = {{"frames", nlohmann::json::array()}};
-  for (int k = 0; k < frames; ++k) {
-    rgb_paths.push_back(dir / fmt::format("{}.png", k));
-    const cv::Rect b = box_of(k);
-    nlohmann::json boxes = nlohmann::json::array();
-    if (k < 6) boxes.push_back({{"class", "person"}, {"box", {b.x, b.y, b.width, b.height}}});
-    detections["frames"].push_back(
-        {{"rgb", rgb_paths.back().filename().string()}, {"detections", boxes}});
-  }
-  std::ofstream(dir / "detections.json") << detections.dump();
+  const std::vector<std::filesystem::path> rgb_paths =
+      WritePersonBoxes(dir.path(), frames, box_of, [](int k) { return k < 6; });
   for (const int hold_frames : {300, 0}) {
     FrontEndOptions o;
     o.detector = "file";
@@ -215,16 +228,8 @@ TEST(FrontEndDetectionHold, AStillPersonTheDetectorMissesStaysLabelledUntilItLea
     FrontEnd front_end(o, dir.path(), size, rgb_paths,
                        cv::Matx33d(525, 0, 320, 0, 525, 240, 0, 0, 1));
     for (int k = 0; k < frames; ++k) {
-      FrontEndFrame f;
-      f.index = static_cast<size_t>(k);
-      f.rgb_path = rgb_paths[static_cast<size_t>(k)];
-      f.bgr = wall.clone();
-      f.depth = cv::Mat(size, CV_32F, cv::Scalar(3.0f));
-      if (k < 30) {
-        body.copyTo(f.bgr(box_of(k)));
-        f.depth(box_of(k)).setTo(1.5f);
-      }
-      const SdoResult r = front_end.Process(f);
+      const SdoResult r = front_end.Process(BlockOnWall(k, rgb_paths[static_cast<size_t>(k)], wall,
+                                                        body, k < 30 ? box_of(k) : cv::Rect()));
       const int known = cv::countNonZero(r.labels == kKnownMovable);
       const int on_body = cv::countNonZero(r.labels(box_of(k)) == kKnownMovable);
       SCOPED_TRACE(fmt::format("hold_frames {}, frame {}", hold_frames, k));
