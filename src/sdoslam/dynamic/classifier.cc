@@ -118,9 +118,9 @@ std::vector<SegmentStats> MeasureSegments(const cv::Mat& seg, int n, const cv::M
 // behind its neighbours (known_min_in_front), labelled kKnownMovable in `segment_labels`; the
 // whole box when no segment matches it; nothing when the best match lies behind. A held box
 // (Detection::held) labels no bare box, and its best match is labelled whole, not clipped to
-// the box, unless it is over max_held_growth times the box: the box was placed by the flow
-// frames ago, and a person walking up outgrows it.
-// A held box's best segment is labelled whole up to this many times the box's area.
+// the box, unless it is over kMaxHeldGrowth times the box: the box was placed by the flow
+// frames ago, and a person walking up outgrows it, but a segment far larger than the box is
+// more likely the room the box has slid onto.
 constexpr double kMaxHeldGrowth = 2.0;
 
 cv::Mat DetectedObject(const Detection& det, const cv::Mat& seg, int n,

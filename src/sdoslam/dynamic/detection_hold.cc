@@ -77,12 +77,20 @@ void DetectionHold::Observe(const std::vector<Detection>& fresh) {
 void DetectionHold::Skip() {
   ++since_observe_;
   // The last detector frame's boxes stay until the next one; held boxes until hold_frames.
+  std::vector<uint8_t> keep(boxes_.size(), 0);
+  for (size_t b = 0; b < boxes_.size(); ++b) {
+    ++ages_[b];
+    keep[b] = ages_[b] <= options_.hold_frames || ages_[b] <= since_observe_;
+  }
+  Keep(keep);
+}
+
+void DetectionHold::Keep(const std::vector<uint8_t>& keep) {
   size_t kept = 0;
   for (size_t b = 0; b < boxes_.size(); ++b) {
-    const int age = ages_[b] + 1;
-    if (age > options_.hold_frames && age > since_observe_) continue;
+    if (!keep[b]) continue;
     boxes_[kept] = boxes_[b];
-    ages_[kept] = age;
+    ages_[kept] = ages_[b];
     hits_[kept] = hits_[b];
     ++kept;
   }
@@ -93,28 +101,24 @@ void DetectionHold::Skip() {
 
 void DetectionHold::Follow(const std::vector<cv::Rect2f>& extents, double max_step) {
   CV_Assert(extents.size() == boxes_.size());
-  size_t kept = 0;
+  std::vector<uint8_t> keep(boxes_.size(), 1);
   for (size_t b = 0; b < boxes_.size(); ++b) {
-    Detection box = boxes_[b];
-    if (box.held) {
-      const cv::Rect2f& e = extents[b];
-      if (e.area() <= 0) continue;
-      const auto clamp = [max_step](float now, float seen) {
-        return std::clamp(seen, static_cast<float>(now / max_step),
-                          static_cast<float>(now * max_step));
-      };
-      const float w = clamp(box.box.width, e.width), h = clamp(box.box.height, e.height);
-      const cv::Point2f centre(e.x + e.width / 2, e.y + e.height / 2);
-      box.box = cv::Rect2f(centre.x - w / 2, centre.y - h / 2, w, h);
+    cv::Rect2f& box = boxes_[b].box;
+    const cv::Rect2f& e = extents[b];
+    if (!boxes_[b].held) continue;  // the detector's own box stands
+    if (e.area() <= 0) {
+      keep[b] = 0;
+      continue;
     }
-    boxes_[kept] = box;
-    ages_[kept] = ages_[b];
-    hits_[kept] = hits_[b];
-    ++kept;
+    const auto clamp = [max_step](float now, float seen) {
+      return std::clamp(seen, static_cast<float>(now / max_step),
+                        static_cast<float>(now * max_step));
+    };
+    const float w = clamp(box.width, e.width), h = clamp(box.height, e.height);
+    const cv::Point2f centre(e.x + e.width / 2, e.y + e.height / 2);
+    box = cv::Rect2f(centre.x - w / 2, centre.y - h / 2, w, h);
   }
-  boxes_.resize(kept);
-  ages_.resize(kept);
-  hits_.resize(kept);
+  Keep(keep);
 }
 
 }  // namespace sdoslam

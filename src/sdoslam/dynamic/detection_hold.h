@@ -1,5 +1,6 @@
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -64,6 +65,9 @@ class DetectionHold {
   }
 
  private:
+  // Drops the boxes whose `keep` is 0.
+  void Keep(const std::vector<uint8_t>& keep);
+
   DetectionHoldOptions options_;
   std::vector<Detection> boxes_;
   std::vector<int> ages_;  // frames since reported
