@@ -57,12 +57,6 @@ class DetectionHold {
   std::vector<Detection>& Boxes() { return boxes_; }
   // Frames since each box of Boxes() was reported (0: this frame).
   const std::vector<int>& Ages() const { return ages_; }
-  void Reset() {
-    boxes_.clear();
-    ages_.clear();
-    hits_.clear();
-    since_observe_ = 0;
-  }
 
  private:
   // Drops the boxes whose `keep` is 0.

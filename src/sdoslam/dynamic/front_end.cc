@@ -288,11 +288,13 @@ SdoResult FrontEnd::Process(const FrontEndFrame& frame, FrontEndTiming* timing) 
 
   start = std::chrono::steady_clock::now();
   // The boxes in force follow the flow to this frame; on a detector frame fresh boxes replace
-  // those they continue, and the others are held a while (DetectionHold).
-  if (frames_ % static_cast<size_t>(options_.detect_every) != 0) detections_.Skip();
-  ShiftByFlow(flow, flow_span, frame.depth, image_size_, &detections_.Boxes());
-  if (frames_ % static_cast<size_t>(options_.detect_every) == 0)
-    detections_.Observe(detector_->Detect(frame));
+  // those they continue, and the others are held a while (DetectionHold). Without holding, a
+  // detector frame's old boxes are all replaced: they need not be moved first.
+  const bool detector_frame = frames_ % static_cast<size_t>(options_.detect_every) == 0;
+  if (!detector_frame) detections_.Skip();
+  if (!detector_frame || options_.hold.hold_frames > 0)
+    ShiftByFlow(flow, flow_span, frame.depth, image_size_, &detections_.Boxes());
+  if (detector_frame) detections_.Observe(detector_->Detect(frame));
   t.detect_ms = MsSince(start);
 
   start = std::chrono::steady_clock::now();
