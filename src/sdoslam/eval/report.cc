@@ -8,9 +8,11 @@
 #include "sdoslam/eval/plot.h"
 
 namespace sdoslam {
-namespace {
 
-constexpr unsigned kPalette[] = {0xd62728, 0x1f77b4, 0x2ca02c, 0xff7f0e, 0x9467bd, 0x8c564b};
+unsigned PlotColour(size_t k) {
+  constexpr unsigned kPalette[] = {0xd62728, 0x1f77b4, 0x2ca02c, 0xff7f0e, 0x9467bd, 0x8c564b};
+  return kPalette[k % std::size(kPalette)];
+}
 
 std::array<int, 2> PlaneAxes(const std::string& plane, const std::vector<Eigen::Vector3d>& gt) {
   if (plane == "xy") return {0, 1};
@@ -28,6 +30,8 @@ std::array<int, 2> PlaneAxes(const std::string& plane, const std::vector<Eigen::
   if (smallest == 1) return {0, 2};
   return {0, 1};
 }
+
+namespace {
 
 std::string FileSafe(const std::string& label) {
   std::string s;
@@ -156,7 +160,7 @@ std::vector<std::filesystem::path> WriteEvaluationPlots(
   const double t0 = evaluations.front().ate.timestamps.front();
   for (size_t k = 0; k < evaluations.size(); ++k) {
     const EstimateEvaluation& e = evaluations[k];
-    const unsigned colour = kPalette[k % std::size(kPalette)];
+    const unsigned colour = PlotColour(k);
     const auto axes = PlaneAxes(options.plane, e.ate.ground_truth);
     auto project = [&](const Eigen::Vector3d& p) {
       return Eigen::Vector2d(p[axes[0]], p[axes[1]]);
@@ -203,7 +207,7 @@ std::vector<std::filesystem::path> WriteErrorOverTimePlots(
   std::vector<std::filesystem::path> written;
   for (size_t k = 0; k < evaluations.size(); ++k) {
     const EstimateEvaluation& e = evaluations[k];
-    PlotSeries series{"", {}, kPalette[k % std::size(kPalette)], 1.5, false};
+    PlotSeries series{"", {}, PlotColour(k), 1.5, false};
     const double t0 = e.ate.timestamps.empty() ? 0.0 : e.ate.timestamps.front();
     for (size_t i = 0; i < e.ate.errors.size(); ++i) {
       series.points.emplace_back(e.ate.timestamps[i] - t0, e.ate.errors[i]);

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <array>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -52,5 +53,12 @@ std::vector<std::filesystem::path> WriteEvaluationPlots(
 // written: each estimate's .png then .svg, in the order of `evaluations`.
 std::vector<std::filesystem::path> WriteErrorOverTimePlots(
     const std::vector<EstimateEvaluation>& evaluations, const std::filesystem::path& folder);
+
+// The two axes (0 x, 1 y, 2 z) of a top view of `points`: those of `plane` ("xy", "xz", "yz"),
+// or for "auto" the two along which the points extend most.
+std::array<int, 2> PlaneAxes(const std::string& plane, const std::vector<Eigen::Vector3d>& points);
+
+// The plots' k-th colour (0xRRGGBB), repeating after six.
+unsigned PlotColour(size_t k);
 
 }  // namespace sdoslam

@@ -14,6 +14,7 @@
 #include "sdoslam/core/regular_file.h"
 #include "sdoslam/core/text_file.h"
 #include "sdoslam/eval/metrics.h"
+#include "sdoslam/eval/report.h"
 #include "sdoslam/io/png_reader.h"
 
 namespace sdoslam {
@@ -69,6 +70,7 @@ Bodies ReadBodies(const std::filesystem::path& sequence) {
 struct Row {
   double timestamp;
   int id;
+  std::string class_name;
   std::optional<Eigen::Isometry3d> motion;  // world: X_now = H · X_previous
   Eigen::Vector3d centroid;
 };
@@ -97,6 +99,7 @@ std::vector<Row> ReadObjectsCsv(const std::filesystem::path& path) {
       Row r;
       r.timestamp = std::stod(f[0]);
       r.id = std::stoi(f[1]);
+      r.class_name = f[2];
       if (!f[3].empty()) {
         Eigen::Isometry3d H = Eigen::Isometry3d::Identity();
         H.translation() = Eigen::Vector3d(std::stod(f[3]), std::stod(f[4]), std::stod(f[5]));
@@ -183,6 +186,7 @@ ObjectEvaluation EvaluateObjects(const std::filesystem::path& sequence,
   for (const auto& [id, object_rows] : by_id) {
     std::string best;
     double best_spread = options.max_spread_m;
+    Eigen::Vector3d best_mean = Eigen::Vector3d::Zero();  // the centroid's mean in the body's frame
     if (static_cast<int>(object_rows.size()) >= options.min_rows) {
       for (const auto& [name, trajectory] : bodies.poses) {
         std::vector<Eigen::Vector3d> local;
@@ -197,13 +201,24 @@ ObjectEvaluation EvaluateObjects(const std::filesystem::path& sequence,
         double sum = 0;
         for (const auto& p : local) sum += (p - mean).squaredNorm();
         const double spread = std::sqrt(sum / static_cast<double>(local.size()));
-        if (spread < best_spread) best_spread = spread, best = name;
+        if (spread < best_spread) best_spread = spread, best = name, best_mean = mean;
       }
     }
     if (best.empty()) {
       result.unmatched_ids.push_back(id);
     } else {
       ids_of[best].push_back({id, best_spread});
+    }
+    ObjectTrack& track = result.tracks[id];
+    track.class_name = object_rows.front()->class_name;
+    track.body = best;
+    for (const Row* r : object_rows) {
+      track.timestamps.push_back(r->timestamp);
+      track.centroids.push_back(S * r->centroid);
+      if (best.empty()) continue;
+      const auto P = body_pose(best, r->timestamp);
+      track.true_centroids.push_back(P ? std::optional<Eigen::Vector3d>(*P * best_mean)
+                                       : std::nullopt);
     }
   }
   const auto in_view = FramesInView(sequence, bodies, options.min_visible_pixels);
@@ -250,10 +265,13 @@ ObjectEvaluation EvaluateObjects(const std::filesystem::path& sequence,
   return result;
 }
 
-std::string FormatObjectEvaluation(const ObjectEvaluation& e) {
-  std::string s =
-      "body                 ids  in view  main id  coverage  spread mm  motions  trans rmse mm  "
-      "rot rmse deg\n";
+std::vector<std::string> ObjectEvaluationHeader() {
+  return {"body",      "ids",     "in view",       "main id",     "coverage",
+          "spread mm", "motions", "trans rmse mm", "rot rmse deg"};
+}
+
+std::vector<std::vector<std::string>> ObjectEvaluationRows(const ObjectEvaluation& e) {
+  std::vector<std::vector<std::string>> rows;
   for (const BodyScore& b : e.bodies) {
     std::string ids = b.ids.empty() ? "-" : std::to_string(b.ids.front());
     if (b.ids.size() > 1) ids += fmt::format("+{}", b.ids.size() - 1);
@@ -261,18 +279,93 @@ std::string FormatObjectEvaluation(const ObjectEvaluation& e) {
         b.frames_in_view > 0 ? static_cast<double>(b.frames_main_id) / b.frames_in_view : 0.0;
     const ErrorStats t = ComputeErrorStats(b.translation_errors);
     const ErrorStats r = ComputeErrorStats(b.rotation_errors_deg);
-    s += fmt::format("{:<20} {:>4} {:>8} {:>8} {:>9.2f} {:>10.1f} {:>8} {:>14} {:>13}\n", b.body,
-                     ids, b.frames_in_view, b.frames_main_id, coverage, 1000 * b.centroid_spread_m,
-                     b.translation_errors.size(),
-                     b.translation_errors.empty() ? "-" : fmt::format("{:.1f}", 1000 * t.rmse),
-                     b.rotation_errors_deg.empty() ? "-" : fmt::format("{:.2f}", r.rmse));
+    rows.push_back({b.body, ids, std::to_string(b.frames_in_view), std::to_string(b.frames_main_id),
+                    fmt::format("{:.2f}", coverage),
+                    fmt::format("{:.1f}", 1000 * b.centroid_spread_m),
+                    std::to_string(b.translation_errors.size()),
+                    b.translation_errors.empty() ? "-" : fmt::format("{:.1f}", 1000 * t.rmse),
+                    b.rotation_errors_deg.empty() ? "-" : fmt::format("{:.2f}", r.rmse)});
   }
+  return rows;
+}
+
+std::string FormatObjectEvaluation(const ObjectEvaluation& e) {
+  // The body's name left-aligned in 20 characters, then each cell right-aligned one character
+  // wider than its column's name.
+  const std::vector<std::string> header = ObjectEvaluationHeader();
+  auto line = [&](const std::vector<std::string>& cells) {
+    std::string s = fmt::format("{:<20}", cells[0]);
+    for (size_t c = 1; c < cells.size(); ++c)
+      s += fmt::format(" {:>{}}", cells[c], header[c].size() + 1);
+    return s + "\n";
+  };
+  std::string s = line(header);
+  for (const auto& row : ObjectEvaluationRows(e)) s += line(row);
   if (!e.unmatched_ids.empty()) {
     std::string ids;
     for (int id : e.unmatched_ids) ids += fmt::format(" {}", id);
     s += fmt::format("objects no body explains:{}\n", ids);
   }
   return s;
+}
+
+Plot ObjectTracksTopView(const ObjectEvaluation& e, const Trajectory& camera_ground_truth,
+                         const std::string& plane, size_t max_tracks) {
+  // The longest tracks, drawn in id order.
+  std::vector<int> ids;
+  for (const auto& [id, track] : e.tracks) ids.push_back(id);
+  std::stable_sort(ids.begin(), ids.end(), [&](int a, int b) {
+    return e.tracks.at(a).centroids.size() > e.tracks.at(b).centroids.size();
+  });
+  if (ids.size() > max_tracks) ids.resize(max_tracks);
+  std::sort(ids.begin(), ids.end());
+
+  std::vector<Eigen::Vector3d> extent;
+  for (const auto& pose : camera_ground_truth) extent.push_back(pose.T_world_camera.translation());
+  for (int id : ids) {
+    const auto& c = e.tracks.at(id).centroids;
+    extent.insert(extent.end(), c.begin(), c.end());
+  }
+  const std::array<int, 2> axes = PlaneAxes(plane, extent);
+  auto project = [&](const Eigen::Vector3d& p) { return Eigen::Vector2d(p[axes[0]], p[axes[1]]); };
+  const char* kAxisNames = "xyz";
+  Plot plot{"Moving objects: top view",
+            fmt::format("{} [m]", kAxisNames[axes[0]]),
+            fmt::format("{} [m]", kAxisNames[axes[1]]),
+            true,
+            {}};
+  PlotSeries camera{"camera (ground truth)", {}, 0x000000, 1.5, false};
+  for (const auto& pose : camera_ground_truth)
+    camera.points.push_back(project(pose.T_world_camera.translation()));
+  plot.series.push_back(std::move(camera));
+  // Under the tracks: where each matched object's centroid truly went (the point fixed in its
+  // body where the centroid sits on average), broken where the body's pose is unknown.
+  bool first_truth = true;
+  for (int id : ids) {
+    const ObjectTrack& track = e.tracks.at(id);
+    PlotSeries truth{"", {}, 0xbbbbbb, 3.0, true};
+    for (size_t k = 1; k < track.true_centroids.size(); ++k) {
+      if (!track.true_centroids[k - 1] || !track.true_centroids[k]) continue;
+      truth.points.push_back(project(*track.true_centroids[k - 1]));
+      truth.points.push_back(project(*track.true_centroids[k]));
+    }
+    if (truth.points.empty()) continue;
+    if (first_truth) truth.label = "true paths of matched objects";
+    first_truth = false;
+    plot.series.push_back(std::move(truth));
+  }
+  for (size_t k = 0; k < ids.size(); ++k) {
+    const ObjectTrack& track = e.tracks.at(ids[k]);
+    PlotSeries series{fmt::format("id {} {}{}", ids[k], track.class_name,
+                                  track.body.empty() ? "" : " = " + track.body),
+                      {},
+                      PlotColour(k),
+                      1.5,
+                      false};
+    for (const auto& c : track.centroids) series.points.push_back(project(c));
+    plot.series.push_back(std::move(series));
+  }
+  return plot;
 }
 
 }  // namespace sdoslam
