@@ -161,8 +161,9 @@ TEST(CliDemo, RunsWithoutDataAndPrintsResults) {
   EXPECT_TRUE(std::filesystem::exists(dir / "plots" / "ate_over_time.png"));
 
   // The report: every image and link resolves relative to it. Images: per run (4) a top view
-  // and an error plot, the error of all runs, and 6 overlay thumbnails (small, linking to the
-  // full-size overlays); the sdo run's config shown.
+  // and an error plot, the error of all runs, 6 overlay thumbnails (small, linking to the
+  // full-size overlays) and the top view of the sdo run's moving objects, under their scores
+  // against the rendered people; the sdo run's config shown.
   const auto report = dir / "report.html";
   ASSERT_TRUE(std::filesystem::exists(report)) << r.output;
   EXPECT_NE(r.output.find(report.string()), std::string::npos) << r.output;
@@ -181,7 +182,11 @@ TEST(CliDemo, RunsWithoutDataAndPrintsResults) {
   size_t images = 0;
   for (size_t at = html.find("<img "); at != std::string::npos; at = html.find("<img ", at + 1))
     ++images;
-  EXPECT_EQ(images, 4u * 2 + 1 + 6) << html;
+  EXPECT_EQ(images, 4u * 2 + 1 + 6 + 1) << html;
+  EXPECT_NE(html.find("plots/objects_top.png"), std::string::npos);
+  EXPECT_NE(html.find("<td>person_1</td>"), std::string::npos) << html;
+  EXPECT_NE(html.find("<td>person_2</td>"), std::string::npos) << html;
+  EXPECT_NE(r.output.find("sdo moving objects:"), std::string::npos) << r.output;
   EXPECT_EQ(thumbnails, 6u) << html;
   EXPECT_EQ(overlays, 6u) << html;
   EXPECT_NE(html.find("mode: sdo"), std::string::npos);  // the config, in its <pre>

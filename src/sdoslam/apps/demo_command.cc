@@ -5,13 +5,16 @@
 #include <iostream>
 #include <map>
 #include <memory>
+#include <optional>
 #include <system_error>
 
 #include "sdoslam/core/error.h"
 #include "sdoslam/eval/html_report.h"
+#include "sdoslam/eval/plot.h"
 #include "sdoslam/eval/report.h"
 #include "sdoslam/io/dataset.h"
 #include "sdoslam/io/trajectory.h"
+#include "sdoslam/objects/object_eval.h"
 #include "sdoslam/runner/run_on_dataset.h"
 #include "sdoslam/synth/scenarios.h"
 #include "sdoslam/synth/sequence.h"
@@ -34,6 +37,8 @@ struct DemoRun {
   RunSummary summary;
   // sdo run: the frames of the report's strip (index) with their features as thumbnail marks.
   std::map<size_t, std::vector<ThumbnailMark>> strip;
+  // sdo run: its moving objects (run --save-objects) scored against the rendered bodies.
+  std::optional<ObjectEvaluation> objects;
 };
 
 // The strip shows this many frames of the sdo run, each this wide: half the rendered width, so
@@ -108,6 +113,39 @@ HtmlSection OverlaySection(const DemoRun& run, const std::filesystem::path& out)
   return section;
 }
 
+// The sdo run's moving objects: their scores against the rendered bodies and a top view of their
+// tracks, written to <out>/plots/objects_top.{png,svg}.
+HtmlSection ObjectsSection(const DemoRun& run, const std::filesystem::path& out) {
+  HtmlSection section;
+  section.title = "Moving objects (" + run.label + ")";
+  section.paragraphs.push_back(
+      "The moving objects the sdo run reported (run --save-objects: objects.csv and objects/), "
+      "each with one id while it is in view and its own rigid motion from frame to frame, scored "
+      "against the rendered bodies (sdoslam eval-objects): the ids taken for each body, the "
+      "frames its main id covers, and the error of the estimated motions at the object's "
+      "centroid. The overlays above name each object by its id.");
+  HtmlTable table;
+  table.header = ObjectEvaluationHeader();
+  table.rows = ObjectEvaluationRows(*run.objects);
+  section.tables.push_back(std::move(table));
+  const Plot plot =
+      ObjectTracksTopView(*run.objects, ReadTumTrajectory(run.sequence / "groundtruth.txt"));
+  const auto png = out / "plots" / "objects_top.png", svg = out / "plots" / "objects_top.svg";
+  SavePlot(plot, png);
+  SavePlot(plot, svg);
+  section.images.push_back({png.lexically_relative(out),
+                            "The camera's true path in black; each object's centroid in colour "
+                            "(through the camera trajectory's alignment) over its true path in "
+                            "grey",
+                            svg.lexically_relative(out)});
+  if (!run.objects->unmatched_ids.empty()) {
+    std::string ids;
+    for (int id : run.objects->unmatched_ids) ids += fmt::format(" {}", id);
+    section.notes.push_back("Objects no body explains (or seen in fewer than 3 frames):" + ids);
+  }
+  return section;
+}
+
 // The plots' .png files among `files` (each .png is followed by its .svg), as images that link
 // to their .svg.
 std::vector<HtmlImage> PlotImages(const std::vector<std::filesystem::path>& files,
@@ -166,6 +204,9 @@ void WriteDemoReport(const DemoArgs& args, const std::filesystem::path& out,
     report.sections.push_back(all_runs);
   }
 
+  for (const DemoRun& run : runs) {
+    if (run.objects) report.sections.push_back(ObjectsSection(run, out));
+  }
   report.sections.push_back(TimingSection(runs));
   for (const DemoRun& run : runs) {
     if (run.mode != RunMode::kSdo) continue;
@@ -229,6 +270,7 @@ void RunDemo(const DemoArgs& args) {
                        sequence,
                        out / "slam" / fmt::format("{}_{}", scenario, ToString(mode)),
                        {},
+                       {},
                        {}};
       RunOptions run_options;
       run_options.dataset = sequence;
@@ -242,6 +284,9 @@ void RunDemo(const DemoArgs& args) {
         // (to click through to; only those, to keep the demo folder small) and their features,
         // to redraw on thumbnails.
         run_options.save_overlays = true;
+        // Its moving objects too, for the report (the camera trajectory is the same with and
+        // without them).
+        run_options.save_objects = true;
         for (size_t i : EvenlySpaced(rendered.frames, kOverlayThumbnails)) {
           demo_run.strip[i];
           run_options.overlay_frames.push_back(i);
@@ -260,6 +305,10 @@ void RunDemo(const DemoArgs& args) {
       std::cout << ToString(mode) << ": " << FormatRunSummary(run);
       if (run.masks && mode == RunMode::kSdo)
         std::cout << FormatMaskEvaluation(*run.masks, "sdo masks");
+      if (run_options.save_objects) {
+        demo_run.objects = EvaluateObjects(sequence, demo_run.out);
+        std::cout << "sdo moving objects:\n" << FormatObjectEvaluation(*demo_run.objects);
+      }
       std::cout << '\n';
       if (run.evaluation) {
         run.evaluation->label = demo_run.label;
