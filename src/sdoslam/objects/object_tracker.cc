@@ -162,18 +162,18 @@ std::vector<ObjectTracker::Region> ObjectTracker::FindRegions(
     cv::Mat mask(labels.size(), CV_8U, cv::Scalar(0)), up;
     cv::resize(work_mask(work_box), up, box.size(), 0, 0, cv::INTER_NEAREST);
     cv::bitwise_and(up, dynamic(box), mask(box));
-    if (std::optional<Region> r = MakeRegion(mask, depth, labels, hints))
+    if (std::optional<Region> r = MakeRegion(mask, box, depth, labels, hints))
       regions.push_back(std::move(*r));
   }
   return regions;
 }
 
 std::optional<ObjectTracker::Region> ObjectTracker::MakeRegion(
-    const cv::Mat& mask, const cv::Mat& depth, const cv::Mat& labels,
+    const cv::Mat& mask, const cv::Rect& within, const cv::Mat& depth, const cv::Mat& labels,
     const std::vector<ClassHint>& hints) const {
   Region r;
   r.mask = mask;
-  r.box = cv::boundingRect(mask);  // every pass below stays inside it
+  r.box = cv::boundingRect(mask(within)) + within.tl();  // every pass below stays inside it
   if (r.box.area() < options_.min_pixels) return std::nullopt;
   const cv::Mat inside = mask(r.box);
   r.pixels = cv::countNonZero(inside);
@@ -209,12 +209,12 @@ std::optional<ObjectTracker::Region> ObjectTracker::MakeRegion(
 }
 
 ObjectTracker::FollowedPoints ObjectTracker::FollowPoints(
-    const cv::Mat& previous_mask, const cv::Mat& gray, const std::vector<cv::Mat>& pyramid) const {
+    const cv::Mat& previous_mask, const cv::Rect& bounds, const cv::Mat& gray,
+    const std::vector<cv::Mat>& pyramid) const {
   FollowedPoints f;
   // Corners within the region's bounds only, found at half resolution (the pyramid's level 1):
   // the corner response of the whole image per object cost milliseconds, and Lucas–Kanade
   // settles a point on the full image anyway.
-  const cv::Rect bounds = cv::boundingRect(previous_mask);
   const cv::Rect half(bounds.x / 2, bounds.y / 2, bounds.width / 2, bounds.height / 2);
   if (half.area() == 0) return f;
   const cv::Mat half_image = previous_pyramid_[2];  // level 1 (level 0's derivatives between)
@@ -248,21 +248,22 @@ ObjectTracker::FollowedPoints ObjectTracker::FollowPoints(
 
 std::optional<Eigen::Isometry3d> ObjectTracker::EstimateMotion(size_t index,
                                                                const FollowedPoints& followed,
-                                                               const cv::Mat& mask,
+                                                               const Region& region,
                                                                const cv::Mat& depth,
                                                                int* inliers) const {
   *inliers = 0;
   std::vector<cv::Point2f> kept_before, kept_now;
   std::vector<double> z_before, z_now;
-  // The mask grown by 2 px, within its bounds grown as much.
-  const cv::Rect box = (cv::boundingRect(mask) + cv::Size(4, 4) - cv::Point(2, 2)) &
-                       cv::Rect(0, 0, mask.cols, mask.rows);
-  cv::Mat grown(mask.size(), CV_8U, cv::Scalar(0));
-  cv::dilate(mask(box), grown(box), cv::Mat(), cv::Point(-1, -1), 2);
+  // The mask grown by 2 px, within its bounds grown as much (`grown` covers `box` only).
+  const cv::Mat& mask = region.mask;
+  const cv::Rect box =
+      (region.box + cv::Size(4, 4) - cv::Point(2, 2)) & cv::Rect(0, 0, mask.cols, mask.rows);
+  cv::Mat grown;
+  cv::dilate(mask(box), grown, cv::Mat(), cv::Point(-1, -1), 2);
   for (size_t k = 0; k < followed.before.size(); ++k) {
     const cv::Point a(cvRound(followed.before[k].x), cvRound(followed.before[k].y));
     const cv::Point b(cvRound(followed.now[k].x), cvRound(followed.now[k].y));
-    if (!grown.at<uint8_t>(b)) continue;
+    if (!box.contains(b) || !grown.at<uint8_t>(b - box.tl())) continue;
     const float za = previous_depth_.at<float>(a), zb = depth.at<float>(b);
     if (!(za > 0) || !(zb > 0)) continue;
     kept_before.push_back(followed.before[k]);
@@ -389,7 +390,7 @@ void ObjectTracker::SplitMergedRegions(const std::vector<FollowedPoints>& follow
                        ? 255
                        : 0;
       }
-      if (std::optional<Region> split = MakeRegion(part, depth, labels, hints))
+      if (std::optional<Region> split = MakeRegion(part, box, depth, labels, hints))
         kept.push_back(std::move(*split));
     }
   }
@@ -417,7 +418,7 @@ std::vector<ObjectObservation> ObjectTracker::Update(size_t index, double timest
   std::vector<FollowedPoints> followed(tracks_.size());
   for (size_t t = 0; t < tracks_.size(); ++t) {
     if (has_previous && tracks_[t].last_frame == previous_index_)
-      followed[t] = FollowPoints(tracks_[t].mask, gray, pyramid);
+      followed[t] = FollowPoints(tracks_[t].mask, tracks_[t].box, gray, pyramid);
   }
   SplitMergedRegions(followed, depth, labels, hints, &regions);
   cv::Mat region_at(labels.size(), CV_32S, cv::Scalar(-1));
@@ -465,14 +466,15 @@ std::vector<ObjectObservation> ObjectTracker::Update(size_t index, double timest
     o.pixels = region.pixels;
     o.centroid_camera = region.centroid_camera;
     if (track_of[r] < 0) {
-      tracks_.push_back({next_id_++, centroid_world, Eigen::Vector3d::Zero(), index, region.mask});
+      tracks_.push_back(
+          {next_id_++, centroid_world, Eigen::Vector3d::Zero(), index, region.mask, region.box});
       o.id = tracks_.back().id;
     } else {
       Track& t = tracks_[static_cast<size_t>(track_of[r])];
       o.id = t.id;
       if (has_previous && t.last_frame == previous_index_) {
-        o.motion_camera = EstimateMotion(index, followed[static_cast<size_t>(track_of[r])],
-                                         region.mask, depth, &o.motion_inliers);
+        o.motion_camera = EstimateMotion(index, followed[static_cast<size_t>(track_of[r])], region,
+                                         depth, &o.motion_inliers);
         o.previous_frame = previous_index_;
         o.previous_timestamp = previous_timestamp_;
       }
@@ -483,6 +485,7 @@ std::vector<ObjectObservation> ObjectTracker::Update(size_t index, double timest
       t.centroid_world = centroid_world;
       t.last_frame = index;
       t.mask = region.mask;
+      t.box = region.box;
     }
     out.push_back(std::move(o));
   }

@@ -120,16 +120,18 @@ class ObjectTracker {
     Eigen::Vector3d velocity_world = Eigen::Vector3d::Zero();  // per frame
     size_t last_frame;
     cv::Mat mask;  // its region in last_frame
+    cv::Rect box;  // the mask's bounds
   };
   std::vector<Region> FindRegions(const cv::Mat& depth, const cv::Mat& labels,
                                   const std::vector<ClassHint>& hints) const;
-  // Corners of `previous_mask` in the previous frame followed into `gray` (both ways).
+  // Corners of `previous_mask` (whose bounds are `previous_box`) in the previous frame followed
+  // into `gray` (both ways).
   struct FollowedPoints {
     std::vector<cv::Point2f> before, now;
   };
   // `pyramid`: gray's, for Lucas–Kanade (previous_pyramid_ is the previous frame's).
-  FollowedPoints FollowPoints(const cv::Mat& previous_mask, const cv::Mat& gray,
-                              const std::vector<cv::Mat>& pyramid) const;
+  FollowedPoints FollowPoints(const cv::Mat& previous_mask, const cv::Rect& previous_box,
+                              const cv::Mat& gray, const std::vector<cv::Mat>& pyramid) const;
   // The votes of a track's `followed` points for the regions they land in (`region_at`: each
   // pixel's region, −1 none): zero where too few land for the region to continue the track.
   std::vector<int> Votes(const FollowedPoints& followed, const cv::Mat& region_at,
@@ -140,13 +142,16 @@ class ObjectTracker {
   void SplitMergedRegions(const std::vector<FollowedPoints>& followed, const cv::Mat& depth,
                           const cv::Mat& labels, const std::vector<ClassHint>& hints,
                           std::vector<Region>* regions) const;
-  // The region of `mask`: its size, centroid and class; none when too small or without depth.
-  std::optional<Region> MakeRegion(const cv::Mat& mask, const cv::Mat& depth, const cv::Mat& labels,
+  // The region of `mask`, which is zero outside `within`: its size, centroid and class; none
+  // when too small or without depth. (Every pass over a mask here stays inside known bounds: a
+  // scan of the whole image per region and per track was a tenth of the tracker's time.)
+  std::optional<Region> MakeRegion(const cv::Mat& mask, const cv::Rect& within,
+                                   const cv::Mat& depth, const cv::Mat& labels,
                                    const std::vector<ClassHint>& hints) const;
   // The object's motion from the previous frame (previous_depth_) into this one, from the
-  // `followed` points that land in `mask`.
+  // `followed` points that land in its region.
   std::optional<Eigen::Isometry3d> EstimateMotion(size_t index, const FollowedPoints& followed,
-                                                  const cv::Mat& mask, const cv::Mat& depth,
+                                                  const Region& region, const cv::Mat& depth,
                                                   int* inliers) const;
 
   Camera camera_;
