@@ -12,6 +12,9 @@ packages=(
   libssl-dev                           # SHA-256 of result files (manifest.json)
   libdeflate-dev                       # inflating PNG images (io/png_reader.cc)
   clang libclang-rt-dev                # libFuzzer targets (scripts/fuzz.sh)
+  pybind11-dev python3-pybind11        # the Python module (build/python)...
+  python3-dev python3-numpy            # ... its headers and arrays
+  python3-pytest                       # ... and its tests
 )
 
 missing=()
