@@ -405,21 +405,21 @@ class PyPipeline {
   }
 
   py::array_t<double> CameraTrajectory() {
-    Trajectory trajectory;
-    {
-      py::gil_scoped_release release;
-      std::lock_guard<std::mutex> lock(mutex_);
-      trajectory = pipeline_->slam().CameraTrajectory();
-    }
-    return TumRows(trajectory);
+    return TrajectoryRows([](const System& slam) { return slam.CameraTrajectory(); });
+  }
+  py::array_t<double> KeyFrameTrajectory() {
+    return TrajectoryRows([](const System& slam) { return slam.KeyFrameTrajectory(); });
   }
 
-  py::array_t<double> KeyFrameTrajectory() {
+  // The trajectory `read` takes from the system, as TUM rows: read under the lock, without the
+  // GIL (the mapping thread may hold the map).
+  template <class Read>
+  py::array_t<double> TrajectoryRows(Read read) {
     Trajectory trajectory;
     {
       py::gil_scoped_release release;
       std::lock_guard<std::mutex> lock(mutex_);
-      trajectory = pipeline_->slam().KeyFrameTrajectory();
+      trajectory = read(pipeline_->slam());
     }
     return TumRows(trajectory);
   }
