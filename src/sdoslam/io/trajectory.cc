@@ -1,5 +1,7 @@
 #include "sdoslam/io/trajectory.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -49,6 +51,33 @@ std::map<int, Trajectory> ReadObjectPoses(const std::filesystem::path& path) {
   return objects;
 }
 
+// A TUM line's columns.
+constexpr const char* kNames[] = {"timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw"};
+
+void AppendTumPose(const double (&v)[8], const TrajectoryReadOptions& options, const char* unit,
+                   Trajectory* trajectory) {
+  for (int k = 1; k <= 3; ++k) {
+    if (std::abs(v[k]) > options.max_abs_position) {
+      throw Error(fmt::format("{} is {:g} m (more than {:g} m from the origin: not a position)",
+                              kNames[k], v[k], options.max_abs_position));
+    }
+  }
+  Eigen::Quaterniond q(v[7], v[4], v[5], v[6]);
+  const double norm = q.norm();
+  if (std::abs(norm - 1.0) > options.quaternion_norm_tolerance) {
+    throw Error("quaternion norm is " + std::to_string(norm) +
+                ", not 1 (is the column order qx qy qz qw?)");
+  }
+  if (!trajectory->empty() && v[0] <= trajectory->back().timestamp) {
+    throw Error(fmt::format("timestamp {:.6f} does not increase over the {} before", v[0], unit));
+  }
+  StampedPose pose;
+  pose.timestamp = v[0];
+  pose.T_world_camera.linear() = q.normalized().toRotationMatrix();
+  pose.T_world_camera.translation() = Eigen::Vector3d(v[1], v[2], v[3]);
+  trajectory->push_back(pose);
+}
+
 Trajectory ReadTumTrajectory(const std::filesystem::path& path,
                              const TrajectoryReadOptions& options) {
   Trajectory trajectory;
@@ -58,33 +87,14 @@ Trajectory ReadTumTrajectory(const std::filesystem::path& path,
                   "expected 8 columns (timestamp tx ty tz qx qy qz qw), found " +
                   std::to_string(tokens.size()));
     }
-    static const char* kNames[] = {"timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw"};
     double v[8];
     v[0] = ParseTimestamp(tokens[0], path, line, kNames[0]);
     for (int k = 1; k < 8; ++k) v[k] = ParseDouble(tokens[k], path, line, kNames[k]);
-    for (int k = 1; k <= 3; ++k) {
-      if (std::abs(v[k]) > options.max_abs_position) {
-        throw Error(Where(path, line) + kNames[k] + " is " + tokens[k] + " m (more than " +
-                    std::to_string(static_cast<long long>(options.max_abs_position)) +
-                    " m from the origin: not a position)");
-      }
+    try {
+      AppendTumPose(v, options, "line", &trajectory);
+    } catch (const Error& e) {
+      throw Error(Where(path, line) + e.what());
     }
-    Eigen::Quaterniond q(v[7], v[4], v[5], v[6]);
-    const double norm = q.norm();
-    if (std::abs(norm - 1.0) > options.quaternion_norm_tolerance) {
-      throw Error(Where(path, line) + "quaternion norm is " + std::to_string(norm) +
-                  ", not 1 (is the column order qx qy qz qw?)");
-    }
-    q.normalize();
-    if (!trajectory.empty() && v[0] <= trajectory.back().timestamp) {
-      throw Error(Where(path, line) + "timestamp " + tokens[0] +
-                  " does not increase over the line before");
-    }
-    StampedPose pose;
-    pose.timestamp = v[0];
-    pose.T_world_camera.linear() = q.toRotationMatrix();
-    pose.T_world_camera.translation() = Eigen::Vector3d(v[1], v[2], v[3]);
-    trajectory.push_back(pose);
   });
   return trajectory;
 }

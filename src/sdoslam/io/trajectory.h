@@ -26,6 +26,13 @@ struct TrajectoryReadOptions {
   double max_abs_position = 1e6;
 };
 
+// Appends the pose `values` (timestamp tx ty tz qx qy qz qw) to `trajectory`, its quaternion
+// normalised, after the checks ReadTumTrajectory makes of each line: no absurd position, a
+// quaternion of norm 1 within the tolerance, a timestamp after the last one. Throws Error saying
+// what is wrong (the caller names where); `unit` ("line", "row") names the entry before.
+void AppendTumPose(const double (&values)[8], const TrajectoryReadOptions& options,
+                   const char* unit, Trajectory* trajectory);
+
 // Reads a TUM trajectory (`timestamp tx ty tz qx qy qz qw`, '#' comments). Throws Error naming
 // file and line for a wrong column count, a non-number or NaN, an absurd position, a bad
 // quaternion, or timestamps that are absurd (ParseTimestamp) or do not increase.

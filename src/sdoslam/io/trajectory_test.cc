@@ -60,13 +60,13 @@ TEST(Trajectory, BadRowsAreRejectedWithFileAndLine) {
   EXPECT_NE(ErrorOf(path).find(":1: ty is nan"), std::string::npos);
   // Finite but absurd: its square overflowed ATE to inf, printed with exit code 0.
   testing::WriteText(path, "1.0 0 0 0 0 0 0 1\n2.0 1e308 0 0 0 0 0 1\n");
-  EXPECT_NE(ErrorOf(path).find(":2: tx is 1e308 m (more than"), std::string::npos) << ErrorOf(path);
+  EXPECT_NE(ErrorOf(path).find(":2: tx is 1e+308 m (more than"), std::string::npos) << ErrorOf(path);
   testing::WriteText(path, "1.0 0 0 -2e6 0 0 0 1\n");
-  EXPECT_NE(ErrorOf(path).find(":1: tz is -2e6 m"), std::string::npos);
+  EXPECT_NE(ErrorOf(path).find(":1: tz is -2e+06 m"), std::string::npos);
   testing::WriteText(path, "1.0 0 0 0 0 0 0 2\n");
   EXPECT_NE(ErrorOf(path).find(":1: quaternion norm is 2"), std::string::npos);
   testing::WriteText(path, "1.0 0 0 0 0 0 0 1\n1.0 0 0 0 0 0 0 1\n");
-  EXPECT_NE(ErrorOf(path).find(":2: timestamp 1.0 does not increase"), std::string::npos);
+  EXPECT_NE(ErrorOf(path).find(":2: timestamp 1.000000 does not increase"), std::string::npos);
   EXPECT_EQ(ErrorOf(dir / "missing.txt"), "file not found: " + (dir / "missing.txt").string());
   // A timestamp beyond any time in seconds (1e308 was read as such; nanoseconds would be too).
   testing::WriteText(path, "1.0 0 0 0 0 0 0 1\n1e308 0 0 0 0 0 0 1\n");

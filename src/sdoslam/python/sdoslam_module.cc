@@ -228,26 +228,13 @@ Trajectory TrajectoryFromRows(const py::handle& object, const std::string& name)
     }
     if (std::abs(v(i, 0)) > kMaxAbsTimestamp)
       throw py::value_error(where + fmt::format("timestamp {:g} is not in seconds", v(i, 0)));
-    for (int k = 1; k <= 3; ++k) {
-      if (std::abs(v(i, k)) > kLimits.max_abs_position) {
-        throw py::value_error(where + fmt::format("position {:g} m is more than {:g} m from the "
-                                                  "origin: not a position",
-                                                  v(i, k), kLimits.max_abs_position));
-      }
+    const double values[8] = {v(i, 0), v(i, 1), v(i, 2), v(i, 3),
+                              v(i, 4), v(i, 5), v(i, 6), v(i, 7)};
+    try {
+      AppendTumPose(values, kLimits, "row", &trajectory);
+    } catch (const Error& e) {
+      throw py::value_error(where + e.what());
     }
-    Eigen::Quaterniond q(v(i, 7), v(i, 4), v(i, 5), v(i, 6));
-    if (std::abs(q.norm() - 1.0) > kLimits.quaternion_norm_tolerance) {
-      throw py::value_error(where + fmt::format("quaternion norm is {:g}, not 1 (is the column "
-                                                "order qx qy qz qw?)",
-                                                q.norm()));
-    }
-    if (!trajectory.empty() && v(i, 0) <= trajectory.back().timestamp)
-      throw py::value_error(where + "timestamp does not increase over the row before");
-    StampedPose pose;
-    pose.timestamp = v(i, 0);
-    pose.T_world_camera.linear() = q.normalized().toRotationMatrix();
-    pose.T_world_camera.translation() = Eigen::Vector3d(v(i, 1), v(i, 2), v(i, 3));
-    trajectory.push_back(pose);
   }
   if (trajectory.empty()) throw py::value_error(name + ": no poses in this trajectory");
   return trajectory;
@@ -333,15 +320,11 @@ class PyPipeline {
                   ": camera.from_dataset: a Pipeline has no dataset to take the intrinsics from; "
                   "give width, height, fx, fy, cx, cy in the camera: section");
     }
-    PipelineOptions options;
-    options.camera = run.camera;
-    options.slam = run.slam;
-    // As `sdoslam run`: --sequential or the config's run.sequential.
-    options.slam.sequential = run.slam.sequential || sequential;
-    options.front_end = run.front_end;
-    options.mode = run.mode;
-    // As a threaded run: feature extraction beside the front end, on the other core.
-    options.extract_beside_front_end = !options.slam.sequential;
+    // As `sdoslam run`: --sequential or the config's run.sequential; threaded, feature
+    // extraction beside the front end, on the other core.
+    run.slam.sequential = run.slam.sequential || sequential;
+    const PipelineOptions options =
+        PipelineOptionsOf(run, /*rgb_paths=*/{}, /*prepare_ahead=*/!run.slam.sequential);
     py::gil_scoped_release release;  // the vocabulary and the front end's models load here
     pipeline_ = std::make_unique<Pipeline>(options);
   }
@@ -396,12 +379,10 @@ class PyPipeline {
       std::lock_guard<std::mutex> lock(mutex_);
       cloud = pipeline_->slam().StaticMapCloud(min_observations);
     }
-    py::array_t<double> out({static_cast<py::ssize_t>(cloud.size()), py::ssize_t{3}});
-    auto rows = out.mutable_unchecked<2>();
-    for (size_t i = 0; i < cloud.size(); ++i) {
-      for (int k = 0; k < 3; ++k) rows(static_cast<py::ssize_t>(i), k) = cloud[i].position[k];
-    }
-    return out;
+    std::vector<Eigen::Vector3d> positions;
+    positions.reserve(cloud.size());
+    for (const ColoredPoint& p : cloud) positions.push_back(p.position.cast<double>());
+    return Points(positions);
   }
 
   py::array_t<double> CameraTrajectory() {

@@ -458,22 +458,6 @@ class StagedFrames {
   std::optional<AheadStage<StagedFrame>> stage_;
 };
 
-// The pipeline a run over `rgb_paths` needs; `prepare_ahead`: frames are prepared in a thread
-// of their own, feature extraction beside the front end.
-PipelineOptions PipelineOptionsOf(const RunOptions& run,
-                                  const std::vector<std::filesystem::path>& rgb_paths,
-                                  bool prepare_ahead) {
-  PipelineOptions options;
-  options.camera = run.camera;
-  options.slam = run.slam;
-  options.front_end = run.front_end;
-  options.mode = run.mode;
-  options.dataset_folder = run.dataset;
-  options.rgb_paths = rgb_paths;
-  options.extract_beside_front_end = prepare_ahead;
-  return options;
-}
-
 // A frame `r` that did not start the map: after 30 of them with no map yet, the run ends with
 // what the best of them lacked (`best_depth_features`: the most features with depth so far).
 void CountNotInitialized(const RunOptions& run, const System& slam, const TrackingResult& r,
@@ -696,6 +680,20 @@ RunOptions RunOptionsFor(const RunOptions& options, const RgbdDataset& dataset) 
 }
 
 }  // namespace
+
+PipelineOptions PipelineOptionsOf(const RunOptions& run,
+                                  const std::vector<std::filesystem::path>& rgb_paths,
+                                  bool prepare_ahead) {
+  PipelineOptions options;
+  options.camera = run.camera;
+  options.slam = run.slam;
+  options.front_end = run.front_end;
+  options.mode = run.mode;
+  options.dataset_folder = run.dataset;
+  options.rgb_paths = rgb_paths;
+  options.extract_beside_front_end = prepare_ahead;
+  return options;
+}
 
 RunSummary RunOnDataset(const RunOptions& options) {
   // An unwritable --out fails here, before anything else is read.

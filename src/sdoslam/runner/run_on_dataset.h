@@ -122,6 +122,13 @@ struct RunSummary {
 // io/result_set.h): an earlier set there is replaced as a whole or not at all. Throws Error for
 // bad inputs and IoError for an unwritable `out` before the first frame, and Error when the first
 // 30 frames cannot start the map (too little depth).
+// The pipeline a run over `rgb_paths` needs (the frames file-based front-end backends read;
+// may be empty without them); `prepare_ahead`: frames are prepared in a thread of their own, so
+// feature extraction runs beside the front end.
+PipelineOptions PipelineOptionsOf(const RunOptions& run,
+                                  const std::vector<std::filesystem::path>& rgb_paths,
+                                  bool prepare_ahead);
+
 RunSummary RunOnDataset(const RunOptions& options);
 
 std::string FormatRunSummary(const RunSummary& summary);
