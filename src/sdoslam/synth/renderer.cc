@@ -5,15 +5,26 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <list>
+#include <memory>
+#include <mutex>
 #include <opencv2/imgproc.hpp>
 
 namespace sdoslam::synth {
 namespace {
 
+// Where a primitive may show: a pixel rectangle and, for a lens that distorts (whose pixel
+// rectangle is the whole image), the rectangle of normalised undistorted coordinates x/z, y/z
+// its rays pass through.
+struct Bounds {
+  cv::Rect screen;
+  double x0 = -1e300, x1 = 1e300, y0 = -1e300, y1 = 1e300;
+};
+
 struct Candidate {
   const Primitive* primitive;
   uint16_t id;
-  cv::Rect screen;  // pixels the primitive may cover
+  Bounds bounds;
   Eigen::Isometry3d T_texture_world;
   RaysFrom rays;  // from the camera centre
 };
@@ -29,15 +40,14 @@ cv::Rect PixelsOf(const Camera& camera, double x0, double x1, double y0, double 
   return cv::Rect(top_left, bottom_right);
 }
 
-// Conservative screen rectangle of a primitive: where both its box and its bounding sphere may
-// show. The whole image when the lens distorts.
-cv::Rect ScreenBounds(const Primitive& p, const Eigen::Isometry3d& T_camera_world,
-                      const Camera& camera) {
+// Conservative bounds of a primitive on the screen: where both its box and its bounding sphere
+// may show.
+Bounds ScreenBounds(const Primitive& p, const Eigen::Isometry3d& T_camera_world,
+                    const Camera& camera) {
   const cv::Rect full(0, 0, camera.width(), camera.height());
   const Eigen::Vector3d c = T_camera_world * p.T_world_primitive.translation();
   const double r = p.half_size.norm();
-  if (c.z() + r < 0.0) return cv::Rect();
-  if (camera.HasDistortion()) return full;
+  if (c.z() + r < 0.0) return {};
   // The primitive's box (an ellipsoid lies inside the box of its radii) bounds it more tightly
   // than its sphere. Only its part in front of the plane z = kNear can be hit (hits are taken at
   // depths above 1e-9 m, and a computed depth is within 1e-13 m of the true one); that part is a
@@ -77,17 +87,31 @@ cv::Rect ScreenBounds(const Primitive& p, const Eigen::Isometry3d& T_camera_worl
       include(q);
     }
   }
-  if (!any) return cv::Rect();
-  const cv::Rect box = PixelsOf(camera, x0, x1, y0, y1) & full;
-  if (c.z() - r < 0.05) return box;
-  // The sphere: the projection of its bounding box (x/z is extreme at the box's corners).
-  const double z_near = c.z() - r, z_far = c.z() + r;
-  auto ratio_range = [&](double lo, double hi) {
-    return std::pair{lo < 0 ? lo / z_near : lo / z_far, hi > 0 ? hi / z_near : hi / z_far};
-  };
-  const auto [sx0, sx1] = ratio_range(c.x() - r, c.x() + r);
-  const auto [sy0, sy1] = ratio_range(c.y() - r, c.y() + r);
-  return PixelsOf(camera, sx0, sx1, sy0, sy1) & box;
+  if (!any) return {};
+  if (c.z() - r >= 0.05) {
+    // The sphere: the projection of its bounding box (x/z is extreme at the box's corners).
+    const double z_near = c.z() - r, z_far = c.z() + r;
+    auto ratio_range = [&](double lo, double hi) {
+      return std::pair{lo < 0 ? lo / z_near : lo / z_far, hi > 0 ? hi / z_near : hi / z_far};
+    };
+    const auto [sx0, sx1] = ratio_range(c.x() - r, c.x() + r);
+    const auto [sy0, sy1] = ratio_range(c.y() - r, c.y() + r);
+    if (!camera.HasDistortion()) {
+      return {PixelsOf(camera, x0, x1, y0, y1) & full & PixelsOf(camera, sx0, sx1, sy0, sy1)};
+    }
+    x0 = std::max(x0, sx0);
+    x1 = std::min(x1, sx1);
+    y0 = std::max(y0, sy0);
+    y1 = std::min(y1, sy1);
+    if (x0 > x1 || y0 > y1) return {};
+  } else if (!camera.HasDistortion()) {
+    return {PixelsOf(camera, x0, x1, y0, y1) & full};
+  }
+  // A distorting lens bends the pixels' rays: the rectangle is one of ray directions, tested
+  // pixel by pixel, with two pixels to spare as PixelsOf keeps.
+  const CameraOptions& o = camera.options();
+  const double spare_x = 2.0 / o.fx, spare_y = 2.0 / o.fy;
+  return {full, x0 - spare_x, x1 + spare_x, y0 - spare_y, y1 + spare_y};
 }
 
 // The primitives the camera may see at time t, each with its screen bounds: the scene's static
@@ -107,15 +131,15 @@ std::vector<Candidate> VisibleCandidates(const Scene& scene, double t,
   }
   std::vector<Candidate> candidates;
   for (const Primitive& p : scene.static_parts) {
-    const cv::Rect r = ScreenBounds(p, T_camera_world, camera);
-    if (r.area() > 0) {
-      candidates.push_back({&p, 0, r, p.T_world_texture.inverse(), RaysFrom(p, origin)});
+    const Bounds b = ScreenBounds(p, T_camera_world, camera);
+    if (b.screen.area() > 0) {
+      candidates.push_back({&p, 0, b, p.T_world_texture.inverse(), RaysFrom(p, origin)});
     }
   }
   for (size_t k = 0; k < object_parts->size(); ++k) {
-    const cv::Rect r = ScreenBounds((*object_parts)[k], T_camera_world, camera);
-    if (r.area() > 0) {
-      candidates.push_back({&(*object_parts)[k], object_ids[k], r,
+    const Bounds b = ScreenBounds((*object_parts)[k], T_camera_world, camera);
+    if (b.screen.area() > 0) {
+      candidates.push_back({&(*object_parts)[k], object_ids[k], b,
                             (*object_parts)[k].T_world_texture.inverse(),
                             RaysFrom((*object_parts)[k], origin)});
     }
@@ -124,19 +148,52 @@ std::vector<Candidate> VisibleCandidates(const Scene& scene, double t,
   return candidates;
 }
 
-// Each pixel's undistorted position (row by row), or none for a camera without distortion.
-std::vector<cv::Point2f> UndistortedPixels(const Camera& camera) {
-  const int width = camera.width(), height = camera.height();
+// Each pixel's undistorted position (row by row) and, per row, the range of their normalised
+// y; empty for a camera without distortion.
+struct UndistortedGrid {
   std::vector<cv::Point2f> pixels;
+  std::vector<std::pair<double, double>> row_y;  // per row: least and greatest (y - cy) / fy
+};
+
+// The grid of a camera, computed once per calibration: undistorting every pixel (OpenCV's
+// iterative undistortPoints) cost more than ray casting the frame (a quarter of the CPU of the
+// plays over the real desk clip). The last few calibrations are kept; a sequence uses one.
+std::shared_ptr<const UndistortedGrid> UndistortedPixels(const Camera& camera) {
+  static std::mutex mutex;
+  static std::list<std::pair<CameraOptions, std::shared_ptr<const UndistortedGrid>>> cache;
+  const CameraOptions& o = camera.options();
+  auto same = [&o](const CameraOptions& a) {
+    return a.width == o.width && a.height == o.height && a.fx == o.fx && a.fy == o.fy &&
+           a.cx == o.cx && a.cy == o.cy && a.k1 == o.k1 && a.k2 == o.k2 && a.p1 == o.p1 &&
+           a.p2 == o.p2 && a.k3 == o.k3;
+  };
+  {
+    const std::lock_guard<std::mutex> lock(mutex);
+    for (const auto& [options, grid] : cache)
+      if (same(options)) return grid;
+  }
+  auto grid = std::make_shared<UndistortedGrid>();
+  const int width = camera.width(), height = camera.height();
   if (camera.HasDistortion()) {
-    pixels.reserve(static_cast<size_t>(width) * height);
+    grid->pixels.reserve(static_cast<size_t>(width) * height);
     for (int v = 0; v < height; ++v)
       for (int u = 0; u < width; ++u)
-        pixels.emplace_back(static_cast<float>(u), static_cast<float>(v));
-    pixels = camera.UndistortPoints(pixels);
+        grid->pixels.emplace_back(static_cast<float>(u), static_cast<float>(v));
+    grid->pixels = camera.UndistortPoints(grid->pixels);
+    grid->row_y.assign(static_cast<size_t>(height), {1e300, -1e300});
+    for (int v = 0; v < height; ++v) {
+      for (int u = 0; u < width; ++u) {
+        const double y = (grid->pixels[static_cast<size_t>(v) * width + u].y - o.cy) / o.fy;
+        auto& [lo, hi] = grid->row_y[static_cast<size_t>(v)];
+        lo = std::min(lo, y);
+        hi = std::max(hi, y);
+      }
+    }
   }
-
-  return pixels;
+  const std::lock_guard<std::mutex> lock(mutex);
+  cache.emplace_front(o, grid);
+  if (cache.size() > 4) cache.pop_back();
+  return grid;
 }
 
 }  // namespace
@@ -149,7 +206,8 @@ RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_wor
   const std::vector<Candidate> candidates =
       VisibleCandidates(scene, t, T_world_camera, camera, &object_parts);
   // Ray directions with z = 1 in the camera frame, so a hit's ray parameter is its depth.
-  const std::vector<cv::Point2f> pixels = UndistortedPixels(camera);
+  const std::shared_ptr<const UndistortedGrid> grid = UndistortedPixels(camera);
+  const std::vector<cv::Point2f>& pixels = grid->pixels;
 
   RenderedView view;
   view.colour.create(height, width, CV_32FC3);
@@ -169,7 +227,13 @@ RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_wor
     TextureSampler texture;
     std::vector<const Candidate*> row_candidates;
     for (const Candidate& c : candidates) {
-      if (v >= c.screen.y && v < c.screen.y + c.screen.height) row_candidates.push_back(&c);
+      const cv::Rect& screen = c.bounds.screen;
+      if (v < screen.y || v >= screen.y + screen.height) continue;
+      if (!grid->row_y.empty()) {
+        const auto [lo, hi] = grid->row_y[static_cast<size_t>(v)];
+        if (hi < c.bounds.y0 || lo > c.bounds.y1) continue;
+      }
+      row_candidates.push_back(&c);
     }
     for (int u = 0; u < width; ++u) {
       double x = (u - o.cx) / o.fx, y = (v - o.cy) / o.fy;
@@ -183,7 +247,9 @@ RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_wor
       best.distance = 1e9;
       const Candidate* best_candidate = nullptr;
       for (const Candidate* c : row_candidates) {
-        if (u < c->screen.x || u >= c->screen.x + c->screen.width) continue;
+        const Bounds& b = c->bounds;
+        if (u < b.screen.x || u >= b.screen.x + b.screen.width) continue;
+        if (x < b.x0 || x > b.x1 || y < b.y0 || y > b.y1) continue;
         if (c->rays.Intersect(direction, best.distance, &hit)) {
           best = hit;
           best_candidate = c;

@@ -151,20 +151,74 @@ TEST(Renderer, StaticPixelsReprojectOntoTheSameSurfaceInTheNextFrame) {
   }
 }
 
-// The renderer tests a ray only against the primitives whose screen rectangle holds its pixel.
-// Every pixel is rendered here again against every primitive, nearest hit first and the earlier
-// primitive on a tie, as the renderer orders them: depth and instance must agree exactly, so a
-// rectangle that leaves out a pixel the primitive covers shows. The views include walls partly
-// behind the camera, people close to it, and a camera pressed against a cabinet and a wall.
-TEST(Renderer, ScreenRectanglesLeaveOutNoPixelAPrimitiveCovers) {
-  CameraOptions o = SyntheticCamera();  // half resolution: a quarter of the brute force's time
+// The pixels of a rendering of `scenario` at time t whose depth or instance differs from a
+// brute-force one, where every pixel's ray is tested against every primitive, nearest hit first
+// and the earlier primitive on a tie, as the renderer orders them. `on_objects`: the pixels the
+// brute force finds on a moving object.
+int MismatchedPixels(const Scenario& scenario, double t, const Eigen::Isometry3d& T_world_camera,
+                     const Camera& camera, int* on_objects) {
+  const CameraOptions& o = camera.options();
+  const RenderedView rendered = Render(scenario.scene, t, T_world_camera, camera);
+  std::vector<Primitive> parts = scenario.scene.static_parts;
+  std::vector<uint16_t> ids(parts.size(), 0);
+  for (const SceneObject& object : scenario.scene.objects) {
+    for (const Primitive& part : object.parts_at(t)) {
+      parts.push_back(part);
+      ids.push_back(object.id);
+    }
+  }
+  std::vector<cv::Point2f> pixels;
+  for (int v = 0; v < o.height; ++v)
+    for (int u = 0; u < o.width; ++u)
+      pixels.emplace_back(static_cast<float>(u), static_cast<float>(v));
+  if (camera.HasDistortion()) pixels = camera.UndistortPoints(pixels);
+  const Eigen::Vector3d origin = T_world_camera.translation();
+  int mismatched = 0;
+  *on_objects = 0;
+  for (int v = 0; v < o.height; ++v) {
+    for (int u = 0; u < o.width; ++u) {
+      const cv::Point2f& q = pixels[static_cast<size_t>(v) * o.width + u];
+      const Eigen::Vector3d direction =
+          T_world_camera.linear() * Eigen::Vector3d((q.x - o.cx) / o.fx, (q.y - o.cy) / o.fy, 1.0);
+      Hit best, hit;
+      best.distance = 1e9;
+      uint16_t id = 0;
+      bool any = false;
+      for (size_t k = 0; k < parts.size(); ++k) {
+        if (Intersect(parts[k], origin, direction, best.distance, &hit)) {
+          best = hit;
+          id = ids[k];
+          any = true;
+        }
+      }
+      const float depth = any ? static_cast<float>(best.distance) : 0.0f;
+      *on_objects += id != 0;
+      mismatched +=
+          rendered.depth.at<float>(v, u) != depth || rendered.instance.at<uint16_t>(v, u) != id;
+    }
+  }
+  return mismatched;
+}
+
+// The synthetic camera at half resolution: a quarter of the brute force's time.
+CameraOptions HalfSyntheticCamera() {
+  CameraOptions o = SyntheticCamera();
   o.width /= 2;
   o.height /= 2;
   o.fx /= 2;
   o.fy /= 2;
   o.cx = (o.cx + 0.5) / 2 - 0.5;
   o.cy = (o.cy + 0.5) / 2 - 0.5;
-  const Camera camera(o);
+  return o;
+}
+
+// The renderer tests a ray only against the primitives whose screen rectangle holds its pixel.
+// Every pixel is rendered here again against every primitive (MismatchedPixels): depth and
+// instance must agree exactly, so a rectangle that leaves out a pixel the primitive covers
+// shows. The views include walls partly behind the camera, people close to it, and a camera
+// pressed against a cabinet and a wall.
+TEST(Renderer, ScreenRectanglesLeaveOutNoPixelAPrimitiveCovers) {
+  const Camera camera(HalfSyntheticCamera());
   struct View {
     std::string scenario;
     double t;
@@ -189,45 +243,40 @@ TEST(Renderer, ScreenRectanglesLeaveOutNoPixelAPrimitiveCovers) {
     }
     for (const Eigen::Isometry3d& T_world_camera : poses) {
       SCOPED_TRACE(view.scenario + " t = " + std::to_string(view.t));
-      const RenderedView rendered = Render(scenario.scene, view.t, T_world_camera, camera);
-      std::vector<Primitive> parts = scenario.scene.static_parts;
-      std::vector<uint16_t> ids(parts.size(), 0);
-      for (const SceneObject& object : scenario.scene.objects) {
-        for (const Primitive& part : object.parts_at(view.t)) {
-          parts.push_back(part);
-          ids.push_back(object.id);
-        }
-      }
-      const Eigen::Vector3d origin = T_world_camera.translation();
-      int mismatched = 0, on_objects = 0;
-      for (int v = 0; v < o.height; ++v) {
-        for (int u = 0; u < o.width; ++u) {
-          const Eigen::Vector3d direction =
-              T_world_camera.linear() * Eigen::Vector3d((u - o.cx) / o.fx, (v - o.cy) / o.fy, 1.0);
-          Hit best, hit;
-          best.distance = 1e9;
-          uint16_t id = 0;
-          bool any = false;
-          for (size_t k = 0; k < parts.size(); ++k) {
-            if (Intersect(parts[k], origin, direction, best.distance, &hit)) {
-              best = hit;
-              id = ids[k];
-              any = true;
-            }
-          }
-          const float depth = any ? static_cast<float>(best.distance) : 0.0f;
-          on_objects += id != 0;
-          mismatched +=
-              rendered.depth.at<float>(v, u) != depth || rendered.instance.at<uint16_t>(v, u) != id;
-        }
-      }
-      EXPECT_EQ(mismatched, 0);
+      int on_objects = 0;
+      EXPECT_EQ(MismatchedPixels(scenario, view.t, T_world_camera, camera, &on_objects), 0);
       ++views;
       people_views += on_objects > 100;
     }
   }
   EXPECT_EQ(views, 9);
   EXPECT_GE(people_views, 4);  // the movers were in view, not only the room
+}
+
+// Under a lens that distorts (freiburg1's, the strongest of the TUM cameras) the rectangles
+// bound the rays' directions instead of pixels, and each row keeps only the primitives its rays
+// may reach: still no pixel left out. Rendered twice, so that the second rendering takes the
+// undistorted pixels from the renderer's cache.
+TEST(Renderer, DirectionRectanglesUnderDistortionLeaveOutNoPixel) {
+  CameraOptions o = HalfSyntheticCamera();
+  o.k1 = 0.262383;
+  o.k2 = -0.953104;
+  o.p1 = -0.005358;
+  o.p2 = 0.002628;
+  o.k3 = 1.163314;
+  const Camera camera(o);
+  ASSERT_TRUE(camera.HasDistortion());
+  const Scenario scenario = MakeScenario("mixed", 10.0);
+  int people_views = 0;
+  for (const double t : {3.0, 3.0, 6.0}) {
+    SCOPED_TRACE("t = " + std::to_string(t));
+    int on_objects = 0;
+    EXPECT_EQ(
+        MismatchedPixels(scenario, t, CameraPoseAt(scenario.motion, t, 10.0), camera, &on_objects),
+        0);
+    people_views += on_objects > 100;
+  }
+  EXPECT_GE(people_views, 2);
 }
 
 // The texture's cells are found by a product with the inverse cell size: the same cell as the
