@@ -30,13 +30,15 @@ SensorFrame Sense(const RenderedView& view, const CameraOptions& camera,
 
   SensorFrame out;
   out.bgr.create(h, w, CV_8UC3);
+  std::vector<float> noise(static_cast<size_t>(3 * w));  // a row's values, drawn at once
   for (int v = 0; v < h; ++v) {
     const auto* in = view.colour.ptr<cv::Vec3f>(v);
     auto* px = out.bgr.ptr<cv::Vec3b>(v);
+    if (noisy) unit_normal.Fill(noise.data(), noise.size());
     for (int u = 0; u < w; ++u) {
       for (int c = 0; c < 3; ++c) {
         float value = in[u][c] * 255.0f * static_cast<float>(gain);
-        if (noisy) value += static_cast<float>(options.image_noise_sigma) * unit_normal();
+        if (noisy) value += static_cast<float>(options.image_noise_sigma) * noise[3 * u + c];
         px[u][c] = cv::saturate_cast<uint8_t>(value);
       }
     }
@@ -46,6 +48,14 @@ SensorFrame Sense(const RenderedView& view, const CameraOptions& camera,
   for (int v = 0; v < h; ++v) {
     const float* z_row = view.depth.ptr<float>(v);
     auto* d = out.depth.ptr<uint16_t>(v);
+    // A value is drawn for each pixel in range (the shadowed ones too): the row's, at once.
+    size_t in_range = 0;
+    for (int u = 0; u < w; ++u) {
+      const double z = z_row[u];
+      in_range += !(z <= 0 || z < camera.depth_min || z > camera.depth_max);
+    }
+    if (noisy) unit_normal.Fill(noise.data(), in_range);
+    size_t next_noise = 0;
     for (int u = 0; u < w; ++u) {
       double z = z_row[u];
       bool missing = z <= 0 || z < camera.depth_min || z > camera.depth_max;
@@ -59,7 +69,7 @@ SensorFrame Sense(const RenderedView& view, const CameraOptions& camera,
           if (n > 0 && z - n > options.silhouette_jump * z) missing = true;
         }
         const double sigma = options.depth_noise_a + options.depth_noise_b * (z - 0.4) * (z - 0.4);
-        z += sigma * unit_normal();
+        z += sigma * noise[next_noise++];
         if (options.depth_distortion != 0) {
           const double du = (u - 0.5 * (w - 1)) / (0.5 * w), dv = (v - 0.5 * (h - 1)) / (0.5 * h);
           const double rho2 = (du * du * w * w + dv * dv * h * h) / (w * w + h * h);

@@ -549,6 +549,33 @@ TEST(Sensor, UnitNormalDrawsWhatTheStandardLibraryDraws) {
   }
 }
 
+// Fill draws the values in bulk (the sensor fills a row at a time): the same values as the
+// library's, whatever the sizes of the batches, odd ones (which keep the second value of a
+// pair for the next) and empty ones included.
+TEST(Sensor, UnitNormalFillDrawsWhatTheStandardLibraryDraws) {
+  std::mt19937 ours(29), theirs(29);
+  UnitNormal unit_normal(ours);
+  std::normal_distribution<float> library(0.0f, 1.0f);
+  std::vector<float> batch;
+  int differ = 0, drawn = 0;
+  for (const size_t size : {1, 0, 2, 3, 3, 7, 1920, 1, 639, 640, 5}) {
+    batch.assign(size, 0.0f);
+    unit_normal.Fill(batch.data(), size);
+    for (const float a : batch) {
+      const float b = library(theirs);
+      differ += std::memcmp(&a, &b, sizeof a) != 0;
+      ++drawn;
+    }
+    // A single call in between takes the next value in turn.
+    const float a = unit_normal(), b = library(theirs);
+    differ += std::memcmp(&a, &b, sizeof a) != 0;
+    ++drawn;
+  }
+  EXPECT_EQ(drawn, 3232);
+  EXPECT_EQ(differ, 0);
+  EXPECT_EQ(ours(), theirs());
+}
+
 TEST(Sensor, DepthDistortionGrowsTowardsTheCorners) {
   const Camera camera(SyntheticCamera());
   const Scenario scenario = MakeScenario("static_room", 10.0);
