@@ -208,6 +208,7 @@ RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_wor
   // Ray directions with z = 1 in the camera frame, so a hit's ray parameter is its depth.
   const std::shared_ptr<const UndistortedGrid> grid = UndistortedPixels(camera);
   const std::vector<cv::Point2f>& pixels = grid->pixels;
+  const bool distorted = !pixels.empty();  // rays are bounded by direction (Bounds), not pixel
 
   RenderedView view;
   view.colour.create(height, width, CV_32FC3);
@@ -249,7 +250,7 @@ RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_wor
       for (const Candidate* c : row_candidates) {
         const Bounds& b = c->bounds;
         if (u < b.screen.x || u >= b.screen.x + b.screen.width) continue;
-        if (x < b.x0 || x > b.x1 || y < b.y0 || y > b.y1) continue;
+        if (distorted && (x < b.x0 || x > b.x1 || y < b.y0 || y > b.y1)) continue;
         if (c->rays.Intersect(direction, best.distance, &hit)) {
           best = hit;
           best_candidate = c;

@@ -27,6 +27,9 @@ SensorFrame Sense(const RenderedView& view, const CameraOptions& camera,
   std::mt19937 rng(seed * 7919u + static_cast<uint32_t>(frame) * 104729u + 17u);
   UnitNormal unit_normal(rng);
   const bool noisy = options.enabled;
+  const auto out_of_range = [&camera](double z) {
+    return z <= 0 || z < camera.depth_min || z > camera.depth_max;
+  };
 
   SensorFrame out;
   out.bgr.create(h, w, CV_8UC3);
@@ -50,15 +53,12 @@ SensorFrame Sense(const RenderedView& view, const CameraOptions& camera,
     auto* d = out.depth.ptr<uint16_t>(v);
     // A value is drawn for each pixel in range (the shadowed ones too): the row's, at once.
     size_t in_range = 0;
-    for (int u = 0; u < w; ++u) {
-      const double z = z_row[u];
-      in_range += !(z <= 0 || z < camera.depth_min || z > camera.depth_max);
-    }
+    for (int u = 0; u < w; ++u) in_range += !out_of_range(z_row[u]);
     if (noisy) unit_normal.Fill(noise.data(), in_range);
     size_t next_noise = 0;
     for (int u = 0; u < w; ++u) {
       double z = z_row[u];
-      bool missing = z <= 0 || z < camera.depth_min || z > camera.depth_max;
+      bool missing = out_of_range(z);
       if (!missing && noisy) {
         // Far side of a depth jump: the projector's pattern is shadowed there.
         const float neighbours[4] = {u > 0 ? z_row[u - 1] : z_row[u],

@@ -52,39 +52,26 @@ class UnitNormal {
       saved_available_ = false;
       return saved_;
     }
-    float x, y, r2;
-    do {
-      // As libstdc++ writes it: 2 · u in float, minus 1.0 in double, rounded back to float.
-      x = static_cast<float>(2.0f * Canonical() - 1.0);
-      y = static_cast<float>(2.0f * Canonical() - 1.0);
-      r2 = x * x + y * y;
-    } while (r2 > 1.0f || r2 == 0.0f);
-    const float mult = std::sqrt(-2 * std::log(r2) / r2);
-    saved_ = x * mult;
+    const Pair p = DrawPair();
+    const float mult = Multiplier(p.r2);
+    saved_ = p.x * mult;
     saved_available_ = true;
-    return y * mult;
+    return p.y * mult;
   }
 
   // The next n values, as n calls would return them. The draws come first, then the roots and
   // logarithms: apart, the arithmetic of one pair no longer waits for a mispredicted rejection
-  // of the next, and a frame's noise costs half as much.
+  // of the next (a 60-frame synthetic sequence: 8 % less CPU).
   void Fill(float* out, size_t n) {
     size_t k = 0;
     if (n > 0 && saved_available_) {
       saved_available_ = false;
       out[k++] = saved_;
     }
-    const size_t pairs = (n - k + 1) / 2;
-    pairs_.resize(pairs);
-    for (Pair& p : pairs_) {
-      do {
-        p.x = static_cast<float>(2.0f * Canonical() - 1.0);
-        p.y = static_cast<float>(2.0f * Canonical() - 1.0);
-        p.r2 = p.x * p.x + p.y * p.y;
-      } while (p.r2 > 1.0f || p.r2 == 0.0f);
-    }
+    pairs_.resize((n - k + 1) / 2);
+    for (Pair& p : pairs_) p = DrawPair();
     for (const Pair& p : pairs_) {
-      const float mult = std::sqrt(-2 * std::log(p.r2) / p.r2);
+      const float mult = Multiplier(p.r2);
       out[k++] = p.y * mult;
       if (k == n) {
         saved_ = p.x * mult;
@@ -96,6 +83,21 @@ class UnitNormal {
   }
 
  private:
+  struct Pair {
+    float x, y, r2;
+  };
+  // A point drawn uniformly in the unit disc (its centre excluded), as libstdc++ draws it.
+  Pair DrawPair() {
+    Pair p;
+    do {
+      // As libstdc++ writes it: 2 · u in float, minus 1.0 in double, rounded back to float.
+      p.x = static_cast<float>(2.0f * Canonical() - 1.0);
+      p.y = static_cast<float>(2.0f * Canonical() - 1.0);
+      p.r2 = p.x * p.x + p.y * p.y;
+    } while (p.r2 > 1.0f || p.r2 == 0.0f);
+    return p;
+  }
+  static float Multiplier(float r2) { return std::sqrt(-2 * std::log(r2) / r2); }
   // std::generate_canonical<float, 24> over a 32-bit engine: one draw scaled by 2^-32, kept
   // below 1.
   float Canonical() {
@@ -103,9 +105,6 @@ class UnitNormal {
     return u >= 1.0f ? std::nextafter(1.0f, 0.0f) : u;
   }
 
-  struct Pair {
-    float x, y, r2;
-  };
   std::mt19937& rng_;
   float saved_ = 0;
   bool saved_available_ = false;
