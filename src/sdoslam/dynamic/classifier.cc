@@ -275,7 +275,8 @@ cv::Mat BoundaryBand(const cv::Mat& boundary_mask, cv::Size work, int band_px, c
   return band;
 }
 
-// Per segment, whether it was seen moving: freshly selected by motion (`moving` & 1) with at
+// Per segment, whether it was seen moving: freshly selected by motion (`moving` & 1; with
+// first_selection_is_tentative, also remembered from an earlier selection: `moving` 3) with at
 // least unmapped_min_outline_on_boundary of its outline on boundaries. Empty when
 // unmapped_frames is 0 (nothing is kept unmapped).
 std::vector<uint8_t> SeenMoving(const std::vector<SegmentStats>& stats,
@@ -285,10 +286,28 @@ std::vector<uint8_t> SeenMoving(const std::vector<SegmentStats>& stats,
   if (options.unmapped_frames == 0) return seen;
   seen.resize(stats.size());
   for (size_t s = 0; s < stats.size(); ++s) {
-    seen[s] = (moving[s] & 1) && stats[s].outline_on_boundary >=
-                                     options.unmapped_min_outline_on_boundary * stats[s].outline;
+    const bool selected = options.first_selection_is_tentative ? moving[s] == 3 : (moving[s] & 1);
+    seen[s] = selected && stats[s].outline_on_boundary >=
+                              options.unmapped_min_outline_on_boundary * stats[s].outline;
   }
   return seen;
+}
+
+// `work_labels` (grown by margin_px) with the pixels of the segments selected by motion for the
+// first time (`moving` 1: fresh, not remembered) static, and the ring grown around them kept;
+// empty when there are none.
+cv::Mat WithoutFirstSelections(const cv::Mat& seg, const std::vector<uint8_t>& moving,
+                               const cv::Mat& work_labels) {
+  if (std::find(moving.begin(), moving.end(), 1) == moving.end()) return {};
+  cv::Mat kept = work_labels.clone();
+  for (int y = 0; y < seg.rows; ++y) {
+    const int* row = seg.ptr<int>(y);
+    uint8_t* out = kept.ptr<uint8_t>(y);
+    for (int x = 0; x < seg.cols; ++x) {
+      if (out[x] == kMovingUnknown && moving[static_cast<size_t>(row[x])] == 1) out[x] = kStatic;
+    }
+  }
+  return kept;
 }
 
 }  // namespace
@@ -357,16 +376,24 @@ SdoResult SdoClassifier::Classify(const Segmentation& segments,
   memory_ = memory;
   const cv::Mat recently_moving =
       RecentlyMoving(seg, known, SeenMoving(stats, moving, options_), backward_map);
-  if (options_.margin_px > 0) {
-    // Grow dynamic regions (max filter: known-movable wins over moving-unknown only by value
-    // order, which is fine: both are dynamic).
-    const int r = options_.margin_px;
+  // Grows dynamic regions by margin_px (max filter: known-movable wins over moving-unknown only
+  // by value order, which is fine: both are dynamic).
+  auto grow = [r = options_.margin_px](cv::Mat* labels) {
+    if (r <= 0 || labels->empty()) return;
     cv::Mat grown;
-    cv::dilate(result.work_labels, grown,
-               cv::getStructuringElement(cv::MORPH_RECT, {2 * r + 1, 2 * r + 1}));
-    result.work_labels = grown;
-  }
+    cv::dilate(*labels, grown, cv::getStructuringElement(cv::MORPH_RECT, {2 * r + 1, 2 * r + 1}));
+    *labels = grown;
+  };
+  grow(&result.work_labels);
+  cv::Mat budget_work;  // empty: the budget's labels are the labels
+  if (options_.first_selection_is_tentative)
+    budget_work = WithoutFirstSelections(seg, moving, result.work_labels);
   cv::resize(result.work_labels, result.labels, image_size, 0, 0, cv::INTER_NEAREST);
+  if (budget_work.empty()) {
+    result.budget_labels = result.labels;
+  } else {
+    cv::resize(budget_work, result.budget_labels, image_size, 0, 0, cv::INTER_NEAREST);
+  }
   if (!recently_moving.empty()) {
     const cv::Mat unmapped = (recently_moving > 0) & (result.work_labels == kStatic);
     cv::resize(unmapped, result.unmapped, image_size, 0, 0, cv::INTER_NEAREST);

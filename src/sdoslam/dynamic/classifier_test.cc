@@ -232,10 +232,12 @@ TEST(SdoClassifier, SelectedObjectPersistsForTheConfiguredFramesThenLapses) {
                                         kStatic}));
 }
 
-// B seen moving on clear boundaries (all of its outline) in one frame, then still: labelled
+// B seen moving on clear boundaries (all of its outline) in two frames, then still: labelled
 // dynamic while the memory lasts (3 frames), then static but still unmapped until 6 frames after
-// it was seen moving. A selection on weaker boundaries (39 % of the outline: above
-// min_outline_on_boundary, below unmapped_min_outline_on_boundary) leaves nothing unmapped.
+// it was last seen moving. A selection on weaker boundaries (39 % of the outline: above
+// min_outline_on_boundary, below unmapped_min_outline_on_boundary) leaves nothing unmapped, and
+// so does a selection in one frame alone (first_selection_is_tentative), unless the option is
+// off.
 TEST(SdoClassifier, AThingSeenMovingStaysUnmappedAfterItsLabelLapses) {
   Scene s;
   SdoClassifierOptions o = ExactOptions();
@@ -249,14 +251,28 @@ TEST(SdoClassifier, AThingSeenMovingStaysUnmappedAfterItsLabelLapses) {
   auto unmapped_on_b = [&](const SdoResult& r) {
     return r.unmapped.empty() ? -1 : cv::countNonZero(r.unmapped(s.b));
   };
-  for (const bool clear : {true, false}) {
-    SCOPED_TRACE(clear ? "clear boundaries" : "weak boundaries");
+  struct Case {
+    const char* name;
+    bool clear;
+    int frames_moving;
+    bool tentative;
+    bool unmapped;  // expected: B is kept unmapped after its label lapses
+  };
+  for (const Case& c : {Case{"clear boundaries, twice", true, 2, true, true},
+                        Case{"weak boundaries, twice", false, 2, true, false},
+                        Case{"clear boundaries, once", true, 1, true, false},
+                        Case{"clear boundaries, once, not tentative", true, 1, false, true}}) {
+    SCOPED_TRACE(c.name);
+    o.first_selection_is_tentative = c.tentative;
     SdoClassifier classifier(o);
-    const SdoResult first = classifier.Classify(
-        s.segments, {}, clear ? s.OutlineOf(s.b) : weak_boundary, zero_flow, s.depth, {160, 120});
-    ASSERT_EQ(first.segment_labels[2], kMovingUnknown);
-    EXPECT_EQ(unmapped_on_b(first), 0);  // dynamic now: nothing static to keep unmapped
-    EXPECT_EQ(cv::countNonZero(first.unmapped), 0);
+    for (int k = 0; k < c.frames_moving; ++k) {
+      const SdoResult r =
+          classifier.Classify(s.segments, {}, c.clear ? s.OutlineOf(s.b) : weak_boundary, zero_flow,
+                              s.depth, {160, 120});
+      ASSERT_EQ(r.segment_labels[2], kMovingUnknown);
+      EXPECT_EQ(unmapped_on_b(r), 0);  // dynamic now: nothing static to keep unmapped
+      EXPECT_EQ(cv::countNonZero(r.unmapped), 0);
+    }
     std::vector<int> unmapped, dynamic;
     for (int k = 0; k < 6; ++k) {
       const SdoResult r =
@@ -267,13 +283,43 @@ TEST(SdoClassifier, AThingSeenMovingStaysUnmappedAfterItsLabelLapses) {
     }
     EXPECT_EQ(dynamic, (std::vector<int>{1, 1, 1, 0, 0, 0}));
     const int b = s.b.area();
-    EXPECT_EQ(unmapped,
-              clear ? (std::vector<int>{0, 0, 0, b, b, 0}) : (std::vector<int>{0, 0, 0, 0, 0, 0}));
+    EXPECT_EQ(unmapped, c.unmapped ? (std::vector<int>{0, 0, 0, b, b, 0})
+                                   : (std::vector<int>{0, 0, 0, 0, 0, 0}));
   }
   o.unmapped_frames = 0;
   EXPECT_TRUE(SdoClassifier(o)
                   .Classify(s.segments, {}, s.OutlineOf(s.b), zero_flow, s.depth, {160, 120})
                   .unmapped.empty());
+}
+
+// The ORB budget steers clear of a segment selected by motion only from its second selection
+// on (first_selection_is_tentative); a known movable class, from the first frame. The labels
+// themselves call B dynamic from the first frame.
+TEST(SdoClassifier, TheBudgetLabelsLeaveOutAFirstSelection) {
+  Scene s;
+  const cv::Mat zero_flow(120, 160, CV_32FC2, cv::Scalar(0, 0));
+  const std::vector<Detection> person_at_a = {{0, "person", 0.9f, cv::Rect2f(18, 28, 34, 64)}};
+  for (const bool tentative : {true, false}) {
+    SCOPED_TRACE(tentative ? "tentative" : "not tentative");
+    SdoClassifierOptions o = ExactOptions();
+    o.first_selection_is_tentative = tentative;
+    SdoClassifier classifier(o);
+    std::vector<int> labelled_b, budget_b, budget_a;
+    for (int k = 0; k < 3; ++k) {
+      const SdoResult r = classifier.Classify(s.segments, person_at_a, s.OutlineOf(s.b), zero_flow,
+                                              s.depth, {160, 120});
+      ASSERT_EQ(r.budget_labels.size(), r.labels.size());
+      labelled_b.push_back(cv::countNonZero(r.labels(s.b) == kMovingUnknown));
+      budget_b.push_back(cv::countNonZero(r.budget_labels(s.b) == kMovingUnknown));
+      budget_a.push_back(cv::countNonZero(r.budget_labels(s.a) == kKnownMovable));
+      EXPECT_EQ(cv::countNonZero(r.budget_labels != r.labels),
+                labelled_b.back() - budget_b.back());  // nothing else differs
+    }
+    const int b = s.b.area(), a = s.a.area();
+    EXPECT_EQ(labelled_b, (std::vector<int>{b, b, b}));
+    EXPECT_EQ(budget_b, tentative ? (std::vector<int>{0, b, b}) : (std::vector<int>{b, b, b}));
+    EXPECT_EQ(budget_a, (std::vector<int>{a, a, a}));
+  }
 }
 
 // A mover that filled B walked on; the room seen there now is farther than the wall around it

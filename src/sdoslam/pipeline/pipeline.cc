@@ -70,11 +70,13 @@ StagedFrame Pipeline::Prepare(RgbdFrame input, const cv::Mat& dynamic_mask) {
   cv::cvtColor(input.bgr, gray, cv::COLOR_BGR2GRAY);
   std::optional<PreparedFrame> features;
   // With orb.budget_on_static the features are spread over what the labels call static, and
-  // wait for them.
+  // wait for them: the front end's budget labels (SdoResult::budget_labels), with a caller's
+  // mask.
   const bool budget_on_static = options_.slam.orb.budget_on_static;
+  cv::Mat budget_labels;
   auto extract = [&] {
     features.emplace(slam_->ExtractFeatures(input.index, input.timestamp, input.bgr, input.depth,
-                                            gray, budget_on_static ? staged.labels : cv::Mat()));
+                                            gray, budget_on_static ? budget_labels : cv::Mat()));
   };
   // A thread of its own (tens of microseconds to start against 10 ms of work; ThreadSanitizer sees
   // its synchronisation, which it would not in a TBB task). The future's destructor waits for it on
@@ -86,6 +88,7 @@ StagedFrame Pipeline::Prepare(RgbdFrame input, const cv::Mat& dynamic_mask) {
     const FrontEndFrame frame{input, gray};
     staged.sdo = front_end_->Process(frame, &staged.front_end_timing);
     staged.labels = staged.sdo->labels;
+    budget_labels = staged.sdo->budget_labels;
     segments = staged.sdo->segments.labels;
     for (uint8_t l : staged.sdo->segment_labels)
       staged.locked_segments.push_back(l == kKnownMovable);
@@ -99,6 +102,14 @@ StagedFrame Pipeline::Prepare(RgbdFrame input, const cv::Mat& dynamic_mask) {
       staged.labels = staged.labels.clone();
     }
     staged.labels.setTo(kMovingUnknown, (dynamic_mask != 0) & (staged.labels == kStatic));
+    if (budget_labels.empty() || budget_labels.data == staged.sdo->labels.data) {
+      budget_labels = staged.labels;
+    } else {
+      budget_labels = budget_labels.clone();
+      budget_labels.setTo(kMovingUnknown, dynamic_mask != 0);
+    }
+  } else if (budget_labels.empty()) {
+    budget_labels = staged.labels;
   }
   if (beside) {
     extraction.get();  // rethrows the extraction's exception
