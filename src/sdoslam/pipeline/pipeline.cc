@@ -88,7 +88,6 @@ StagedFrame Pipeline::Prepare(RgbdFrame input, const cv::Mat& dynamic_mask) {
     const FrontEndFrame frame{input, gray};
     staged.sdo = front_end_->Process(frame, &staged.front_end_timing);
     staged.labels = staged.sdo->labels;
-    budget_labels = staged.sdo->budget_labels;
     segments = staged.sdo->segments.labels;
     for (uint8_t l : staged.sdo->segment_labels)
       staged.locked_segments.push_back(l == kKnownMovable);
@@ -102,13 +101,16 @@ StagedFrame Pipeline::Prepare(RgbdFrame input, const cv::Mat& dynamic_mask) {
       staged.labels = staged.labels.clone();
     }
     staged.labels.setTo(kMovingUnknown, (dynamic_mask != 0) & (staged.labels == kStatic));
-    if (budget_labels.empty() || budget_labels.data == staged.sdo->labels.data) {
-      budget_labels = staged.labels;
-    } else {
+  }
+  // The budget's labels are the labels, unless the front end left a first selection's inside in
+  // the budget; a caller's mask stays out of it either way.
+  if (staged.sdo && staged.sdo->budget_labels.data != staged.sdo->labels.data) {
+    budget_labels = staged.sdo->budget_labels;
+    if (!dynamic_mask.empty()) {
       budget_labels = budget_labels.clone();
       budget_labels.setTo(kMovingUnknown, dynamic_mask != 0);
     }
-  } else if (budget_labels.empty()) {
+  } else {
     budget_labels = staged.labels;
   }
   if (beside) {
