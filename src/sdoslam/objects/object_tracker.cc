@@ -320,11 +320,19 @@ std::optional<Eigen::Isometry3d> ObjectTracker::EstimateMotion(size_t index,
   return T;
 }
 
-std::vector<int> ObjectTracker::Votes(const FollowedPoints& followed, const cv::Mat& region_at,
-                                      size_t regions) const {
-  std::vector<int> votes(regions, 0);
+int ObjectTracker::RegionAt(const std::vector<Region>& regions, const cv::Point& p) {
+  for (size_t r = 0; r < regions.size(); ++r) {
+    if (regions[r].box.contains(p) && regions[r].mask.at<uint8_t>(p) != 0)
+      return static_cast<int>(r);
+  }
+  return -1;
+}
+
+std::vector<int> ObjectTracker::Votes(const FollowedPoints& followed,
+                                      const std::vector<Region>& regions) const {
+  std::vector<int> votes(regions.size(), 0);
   for (const cv::Point2f& p : followed.now) {
-    const int r = region_at.at<int>(cvRound(p.y), cvRound(p.x));
+    const int r = RegionAt(regions, cv::Point(cvRound(p.x), cvRound(p.y)));
     if (r >= 0) ++votes[static_cast<size_t>(r)];
   }
   // Only a region that holds min_votes of the track's points and a quarter of them continues it.
@@ -338,12 +346,9 @@ void ObjectTracker::SplitMergedRegions(const std::vector<FollowedPoints>& follow
                                        const cv::Mat& depth, const cv::Mat& labels,
                                        const std::vector<ClassHint>& hints,
                                        std::vector<Region>* regions) const {
-  cv::Mat region_at(labels.size(), CV_32S, cv::Scalar(-1));
-  for (size_t r = 0; r < regions->size(); ++r)
-    region_at((*regions)[r].box).setTo(static_cast<int>(r), (*regions)[r].mask((*regions)[r].box));
   std::vector<std::vector<size_t>> voters(regions->size());  // tracks continued by each region
   for (size_t t = 0; t < followed.size(); ++t) {
-    const std::vector<int> votes = Votes(followed[t], region_at, regions->size());
+    const std::vector<int> votes = Votes(followed[t], *regions);
     for (size_t r = 0; r < votes.size(); ++r) {
       if (votes[r] > 0) voters[r].push_back(t);
     }
@@ -364,7 +369,7 @@ void ObjectTracker::SplitMergedRegions(const std::vector<FollowedPoints>& follow
     for (size_t t : voters[r]) {
       for (const cv::Point2f& p : followed[t].now) {
         const cv::Point q(cvRound(p.x), cvRound(p.y));
-        if (region_at.at<int>(q) != static_cast<int>(r)) continue;
+        if (!box.contains(q) || region.mask.at<uint8_t>(q) == 0) continue;
         not_seed.at<uint8_t>(q - box.tl()) = 0;
         owner.at<int>(q - box.tl()) = static_cast<int>(t);
       }
@@ -407,9 +412,14 @@ std::vector<ObjectObservation> ObjectTracker::Update(size_t index, double timest
   const bool has_previous = !previous_pyramid_.empty() && previous_index_ + 1 == index;
   std::vector<Region> regions;
   if (tracked && !labels.empty()) regions = FindRegions(depth, labels, hints);
-  // Lucas–Kanade's pyramid of this frame, built once for every object (and kept for the next).
+  // Lucas–Kanade's pyramid of this frame, built once for every object (and kept for the next),
+  // and only where a track is followed into this frame or a region may be followed out of it.
+  const bool follows =
+      has_previous && std::any_of(tracks_.begin(), tracks_.end(),
+                                  [&](const Track& t) { return t.last_frame == previous_index_; });
   std::vector<cv::Mat> pyramid;
-  cv::buildOpticalFlowPyramid(gray, pyramid, cv::Size(kWindow, kWindow), kLevels);
+  if (follows || !regions.empty())
+    cv::buildOpticalFlowPyramid(gray, pyramid, cv::Size(kWindow, kWindow), kLevels);
   // Association. A track seen in the previous frame follows its own points (Lucas–Kanade from
   // its region then) into this frame: the region most of them land in continues it (a sdo mask
   // that covers another part of the object each frame moves the centroid by decimetres, not the
@@ -421,9 +431,6 @@ std::vector<ObjectObservation> ObjectTracker::Update(size_t index, double timest
       followed[t] = FollowPoints(tracks_[t].mask, tracks_[t].box, gray, pyramid);
   }
   SplitMergedRegions(followed, depth, labels, hints, &regions);
-  cv::Mat region_at(labels.size(), CV_32S, cv::Scalar(-1));
-  for (size_t r = 0; r < regions.size(); ++r)
-    region_at(regions[r].box).setTo(static_cast<int>(r), regions[r].mask(regions[r].box));
   struct Pair {
     int votes;
     double distance;
@@ -431,7 +438,7 @@ std::vector<ObjectObservation> ObjectTracker::Update(size_t index, double timest
   };
   std::vector<Pair> pairs;
   for (size_t t = 0; t < tracks_.size(); ++t) {
-    const std::vector<int> votes = Votes(followed[t], region_at, regions.size());
+    const std::vector<int> votes = Votes(followed[t], regions);
     for (size_t r = 0; r < regions.size(); ++r) {
       if (votes[r] > 0) pairs.push_back({votes[r], 0.0, r, t});
     }
@@ -496,7 +503,9 @@ std::vector<ObjectObservation> ObjectTracker::Update(size_t index, double timest
   previous_index_ = index;
   previous_timestamp_ = timestamp;
   previous_pyramid_ = std::move(pyramid);
-  previous_depth_ = depth.clone();
+  // Only a frame with objects is followed out of (its regions are the tracks seen in it).
+  if (regions.empty()) previous_pyramid_.clear();
+  previous_depth_ = regions.empty() ? cv::Mat() : depth.clone();
   return out;
 }
 

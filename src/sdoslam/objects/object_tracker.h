@@ -132,10 +132,13 @@ class ObjectTracker {
   // `pyramid`: gray's, for Lucas–Kanade (previous_pyramid_ is the previous frame's).
   FollowedPoints FollowPoints(const cv::Mat& previous_mask, const cv::Rect& previous_box,
                               const cv::Mat& gray, const std::vector<cv::Mat>& pyramid) const;
-  // The votes of a track's `followed` points for the regions they land in (`region_at`: each
-  // pixel's region, −1 none): zero where too few land for the region to continue the track.
-  std::vector<int> Votes(const FollowedPoints& followed, const cv::Mat& region_at,
-                         size_t regions) const;
+  // The region `p` lies in, or -1. Regions never overlap (each pixel is flood-filled once, and a
+  // split hands each pixel to one part), so the first that holds it is the one: a lookup per
+  // point, where an image of region numbers cost two full-size fills a frame.
+  static int RegionAt(const std::vector<Region>& regions, const cv::Point& p);
+  // The votes of a track's `followed` points for the `regions` they land in: zero where too few
+  // land for the region to continue the track.
+  std::vector<int> Votes(const FollowedPoints& followed, const std::vector<Region>& regions) const;
   // A region that continues two or more tracks (objects that came together in the image, at
   // depths too close to cut them apart) is cut between them: each pixel goes to the track whose
   // followed point lies nearest.

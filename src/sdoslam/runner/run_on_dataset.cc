@@ -247,6 +247,7 @@ struct FrameRow {
   size_t index;
   const FrameOutput& out;
   int dynamic_features;  // features labelled anything but static
+  double objects_ms;     // the object tracker's time on the frame (run --save-objects), else 0
 };
 
 const std::vector<CsvColumn<FrameRow>>& FrameColumns() {
@@ -291,6 +292,7 @@ const std::vector<CsvColumn<FrameRow>>& FrameColumns() {
       {"close_tracked", [](R f) { return Plain(f.out.tracking.close_tracked); }},
       {"close_untracked", [](R f) { return Plain(f.out.tracking.close_untracked); }},
       {"check_readmitted", [](R f) { return Plain(f.out.tracking.check_readmitted); }},
+      {"objects_ms", [](R f) { return Ms(f.objects_ms); }},
   };
   return columns;
 }
@@ -747,7 +749,6 @@ RunSummary RunOnDataset(const RunOptions& options) {
     summary.lost += r.state == TrackingState::kLost;
     const int dynamic_features = static_cast<int>(std::count_if(
         r.feature_labels.begin(), r.feature_labels.end(), [](uint8_t l) { return l != 0; }));
-    AppendCsvRow(FrameColumns(), FrameRow{i, out, dynamic_features}, &log);
     if (r.relocalized) summary.relocalizations.push_back(i);
     if (r.restarted) {
       spdlog::warn("frame {}: lost while the map was young; the map starts again from this frame",
@@ -756,7 +757,13 @@ RunSummary RunOnDataset(const RunOptions& options) {
     if (!labels.empty() && mask_evaluator) {
       mask_evaluator->AddFrame(rgb_paths[i], labels, r.feature_points, r.feature_labels);
     }
+    const auto objects_start = std::chrono::steady_clock::now();
     const size_t seen = object_tracker ? FollowObjects(out, &*object_tracker, &objects) : 0;
+    const double objects_ms = object_tracker ? std::chrono::duration<double, std::milli>(
+                                                   std::chrono::steady_clock::now() - objects_start)
+                                                   .count()
+                                             : 0.0;
+    AppendCsvRow(FrameColumns(), FrameRow{i, out, dynamic_features, objects_ms}, &log);
     SaveFrameImages(run, results, i, rgb_paths[i].filename().string(), out,
                     {objects.end() - static_cast<std::ptrdiff_t>(seen), objects.end()},
                     &feature_log);
