@@ -26,6 +26,8 @@ void ObjectTrackerOptions::Check() const {
   require(gate_m > 0, "gate_m must be > 0");
   require(min_votes >= 1, "min_votes must be at least 1");
   require(max_missed_frames >= 0, "max_missed_frames must be >= 0");
+  require(max_predicted_frames >= 0, "max_predicted_frames must be >= 0");
+  require(static_px >= 0, "static_px must be >= 0");
   require(max_corners >= 3, "max_corners must be at least 3");
   require(max_round_trip_px > 0, "max_round_trip_px must be > 0");
   require(pixel_sigma > 0, "pixel_sigma must be > 0");
@@ -246,11 +248,9 @@ ObjectTracker::FollowedPoints ObjectTracker::FollowPoints(
   return f;
 }
 
-std::optional<Eigen::Isometry3d> ObjectTracker::EstimateMotion(size_t index,
-                                                               const FollowedPoints& followed,
-                                                               const Region& region,
-                                                               const cv::Mat& depth,
-                                                               int* inliers) const {
+std::optional<Eigen::Isometry3d> ObjectTracker::EstimateMotion(
+    size_t index, const FollowedPoints& followed, const Region& region, const cv::Mat& depth,
+    const Eigen::Isometry3d& camera_motion, int* inliers) const {
   *inliers = 0;
   std::vector<cv::Point2f> kept_before, kept_now;
   std::vector<double> z_before, z_now;
@@ -271,17 +271,41 @@ std::optional<Eigen::Isometry3d> ObjectTracker::EstimateMotion(size_t index,
     z_before.push_back(za);
     z_now.push_back(zb);
   }
-  const int n = static_cast<int>(kept_before.size());
-  if (n < options_.min_motion_points) return std::nullopt;
-  const std::vector<cv::Point2f> ub = camera_.UndistortPoints(kept_before);
-  const std::vector<cv::Point2f> un = camera_.UndistortPoints(kept_now);
+  if (static_cast<int>(kept_before.size()) < options_.min_motion_points) return std::nullopt;
+  std::vector<cv::Point2f> ub = camera_.UndistortPoints(kept_before);
+  std::vector<cv::Point2f> un = camera_.UndistortPoints(kept_now);
   std::vector<Eigen::Vector3d> from, to;
-  for (int k = 0; k < n; ++k) {
-    from.push_back(camera_.Unproject({ub[static_cast<size_t>(k)].x, ub[static_cast<size_t>(k)].y},
-                                     z_before[static_cast<size_t>(k)]));
-    to.push_back(camera_.Unproject({un[static_cast<size_t>(k)].x, un[static_cast<size_t>(k)].y},
-                                   z_now[static_cast<size_t>(k)]));
+  for (size_t k = 0; k < ub.size(); ++k) {
+    from.push_back(camera_.Unproject({ub[k].x, ub[k].y}, z_before[k]));
+    to.push_back(camera_.Unproject({un[k].x, un[k].y}, z_now[k]));
   }
+  if (options_.static_px > 0) {
+    // Which points the camera's motion alone explains: where it puts them in the image, and at
+    // what depth (both ends' noise).
+    std::vector<uint8_t> still(from.size(), 0);
+    size_t stills = 0;
+    const CameraOptions& c = camera_.options();
+    for (size_t k = 0; k < from.size(); ++k) {
+      const Eigen::Vector3d p = camera_motion * from[k];
+      if (p.z() <= 0) continue;
+      const Eigen::Vector2d pixel(c.fx * p.x() / p.z() + c.cx, c.fy * p.y() / p.z() + c.cy);
+      const double depth_sigma = std::sqrt(2.0) * DepthNoiseSigma(SceneFlowOptions(), to[k].z());
+      still[k] = (pixel - Eigen::Vector2d(un[k].x, un[k].y)).norm() <= options_.static_px &&
+                 std::abs(p.z() - to[k].z()) <= 3 * depth_sigma;
+      stills += still[k];
+    }
+    if (stills > 0 && 2 * stills < from.size()) {
+      size_t kept = 0;
+      for (size_t k = 0; k < from.size(); ++k) {
+        if (still[k]) continue;
+        from[kept] = from[k], to[kept] = to[k], un[kept] = un[k];
+        ++kept;
+      }
+      from.resize(kept), to.resize(kept), un.resize(kept);
+    }
+  }
+  const int n = static_cast<int>(from.size());
+  if (n < options_.min_motion_points) return std::nullopt;
   RigidRansacOptions ransac;
   ransac.inlier_base = options_.inlier_m;
   ransac.inlier_per_depth2 = options_.inlier_per_m2;
@@ -447,7 +471,8 @@ std::vector<ObjectObservation> ObjectTracker::Update(size_t index, double timest
     const Eigen::Vector3d c = T_world_camera * regions[r].centroid_camera;
     for (size_t t = 0; t < tracks_.size(); ++t) {
       const Track& track = tracks_[t];
-      const double frames = static_cast<double>(index - track.last_frame);
+      const double frames = static_cast<double>(
+          std::min(index - track.last_frame, static_cast<size_t>(options_.max_predicted_frames)));
       const double d = (c - (track.centroid_world + frames * track.velocity_world)).norm();
       if (d <= options_.gate_m) pairs.push_back({0, d, r, t});
     }
@@ -480,8 +505,9 @@ std::vector<ObjectObservation> ObjectTracker::Update(size_t index, double timest
       Track& t = tracks_[static_cast<size_t>(track_of[r])];
       o.id = t.id;
       if (has_previous && t.last_frame == previous_index_) {
-        o.motion_camera = EstimateMotion(index, followed[static_cast<size_t>(track_of[r])], region,
-                                         depth, &o.motion_inliers);
+        o.motion_camera =
+            EstimateMotion(index, followed[static_cast<size_t>(track_of[r])], region, depth,
+                           T_world_camera.inverse() * previous_T_world_camera_, &o.motion_inliers);
         o.previous_frame = previous_index_;
         o.previous_timestamp = previous_timestamp_;
       }
@@ -506,6 +532,7 @@ std::vector<ObjectObservation> ObjectTracker::Update(size_t index, double timest
   // Only a frame with objects is followed out of (its regions are the tracks seen in it).
   if (regions.empty()) previous_pyramid_.clear();
   previous_depth_ = regions.empty() ? cv::Mat() : depth.clone();
+  previous_T_world_camera_ = T_world_camera;
   return out;
 }
 

@@ -156,6 +156,70 @@ TEST(ObjectTracker, KeepsTheIdThroughAShortOcclusionAndGivesAFarRegionANewOne) {
   EXPECT_EQ(tracker.Update(9, 0.9, here.gray, here.depth, here.labels, {}, camera, true)[0].id, 3);
 }
 
+TEST(ObjectTracker, AMoverLostForAWhileComesBackUnderItsIdWhereItWasLost) {
+  // A square moves 6 cm a frame for four frames, then the labels lose it for ten frames while
+  // it stands (a pendulum at the end of its swing), and it is labelled again where it stopped.
+  // Carried on at its velocity for all eleven frames, its centroid would be predicted 0.5 m on,
+  // beyond gate_m: only a prediction held to max_predicted_frames finds it again.
+  const cv::Mat wall = Texture({640, 480}, 7), patch = Texture({120, 120}, 8);
+  const cv::Mat none(wall.size(), CV_8U, cv::Scalar(0));
+  const Eigen::Isometry3d camera = Eigen::Isometry3d::Identity();
+  for (const int predicted : {3, 1000}) {
+    ObjectTrackerOptions options;
+    options.max_missed_frames = 30;
+    options.max_predicted_frames = predicted;
+    ObjectTracker tracker(TestCamera(), options);
+    Frame f;
+    for (size_t k = 0; k < 4; ++k) {
+      f = Render(wall, patch, -0.5 + 0.06 * static_cast<double>(k), -0.1);
+      ASSERT_EQ(tracker.Update(k, 0.1 * k, f.gray, f.depth, f.labels, {}, camera, true)[0].id, 1);
+    }
+    for (size_t k = 4; k < 14; ++k)
+      EXPECT_TRUE(tracker.Update(k, 0.1 * k, f.gray, f.depth, none, {}, camera, true).empty());
+    const auto back = tracker.Update(14, 1.4, f.gray, f.depth, f.labels, {}, camera, true);
+    ASSERT_EQ(back.size(), 1u);
+    EXPECT_EQ(back[0].id, predicted == 3 ? 1 : 2) << "max_predicted_frames " << predicted;
+  }
+}
+
+TEST(ObjectTracker, LeavesAStaticStripOfItsMaskOutOfItsMotion) {
+  // The labels take in, beside the moving square, a strip of a static surface at its depth (a
+  // table under a carried box): their corners move with the camera, here not at all, and a
+  // rigid fit that counts them pulls the square's motion toward standing still.
+  const cv::Mat wall = Texture({640, 480}, 9), patch = Texture({150, 150}, 10);
+  const cv::Mat strip_texture = Texture({300, 70}, 11);
+  const cv::Rect strip(150, 372, 300, 70);  // under the square, wider than its path
+  const Eigen::Isometry3d camera = Eigen::Isometry3d::Identity();
+  const Eigen::Vector3d step(0.02, 0, 0);
+  for (const double static_px : {1.5, 0.0}) {
+    ObjectTrackerOptions options;
+    options.static_px = static_px;
+    ObjectTracker tracker(TestCamera(), options);
+    double worst = 0;
+    for (size_t k = 0; k < 4; ++k) {
+      // The square's bottom edge (v = 239.5 − 525·0.05/1.5 + 150) meets the strip's top.
+      Frame f = Render(wall, patch, -0.2 + step.x() * static_cast<double>(k), -0.05);
+      strip_texture.copyTo(f.gray(strip));
+      f.depth(strip).setTo(1.5);
+      f.labels(strip).setTo(2);
+      const auto seen = tracker.Update(k, 0.1 * k, f.gray, f.depth, f.labels, {}, camera, true);
+      ASSERT_EQ(seen.size(), 1u) << "frame " << k;
+      if (k == 0) continue;
+      ASSERT_TRUE(seen[0].motion_camera.has_value()) << "frame " << k;
+      // The motion of a point of the square (its centre, 1.5 m away).
+      const Eigen::Vector3d centre(-0.2 + step.x() * static_cast<double>(k - 1) + 0.75 * 1.5 / 5.25,
+                                   -0.05 + 0.75 * 1.5 / 5.25, 1.5);
+      const Eigen::Isometry3d& G = *seen[0].motion_camera;
+      worst = std::max(worst, (G * centre - centre - step).norm());
+    }
+    if (static_px > 0) {
+      EXPECT_LT(worst, 0.002) << "static_px " << static_px;
+    } else {
+      EXPECT_GT(worst, 0.004) << "without the static test the strip pulls the motion";
+    }
+  }
+}
+
 TEST(ObjectTracker, TakesTheClassOfTheBoxOverAKnownRegion) {
   const cv::Mat wall = Texture({640, 480}, 5), patch = Texture({150, 150}, 6);
   ObjectTracker tracker(TestCamera());
