@@ -284,11 +284,10 @@ std::optional<Eigen::Isometry3d> ObjectTracker::EstimateMotion(
     // what depth (both ends' noise).
     std::vector<uint8_t> still(from.size(), 0);
     size_t stills = 0;
-    const CameraOptions& c = camera_.options();
     for (size_t k = 0; k < from.size(); ++k) {
       const Eigen::Vector3d p = camera_motion * from[k];
       if (p.z() <= 0) continue;
-      const Eigen::Vector2d pixel(c.fx * p.x() / p.z() + c.cx, c.fy * p.y() / p.z() + c.cy);
+      const Eigen::Vector2d pixel = camera_.Project(p);  // undistorted, as `un`
       const double depth_sigma = std::sqrt(2.0) * DepthNoiseSigma(SceneFlowOptions(), to[k].z());
       still[k] = (pixel - Eigen::Vector2d(un[k].x, un[k].y)).norm() <= options_.static_px &&
                  std::abs(p.z() - to[k].z()) <= 3 * depth_sigma;

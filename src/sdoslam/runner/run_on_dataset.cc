@@ -21,6 +21,7 @@
 #include "sdoslam/core/atomic_file.h"
 #include "sdoslam/core/bounded_queue.h"
 #include "sdoslam/core/error.h"
+#include "sdoslam/core/stopwatch.h"
 #include "sdoslam/dynamic/overlay.h"
 #include "sdoslam/io/png_reader.h"
 #include "sdoslam/io/result_set.h"
@@ -759,10 +760,7 @@ RunSummary RunOnDataset(const RunOptions& options) {
     }
     const auto objects_start = std::chrono::steady_clock::now();
     const size_t seen = object_tracker ? FollowObjects(out, &*object_tracker, &objects) : 0;
-    const double objects_ms = object_tracker ? std::chrono::duration<double, std::milli>(
-                                                   std::chrono::steady_clock::now() - objects_start)
-                                                   .count()
-                                             : 0.0;
+    const double objects_ms = object_tracker ? MsSince(objects_start) : 0.0;
     AppendCsvRow(FrameColumns(), FrameRow{i, out, dynamic_features, objects_ms}, &log);
     SaveFrameImages(run, results, i, rgb_paths[i].filename().string(), out,
                     {objects.end() - static_cast<std::ptrdiff_t>(seen), objects.end()},
