@@ -56,6 +56,9 @@ void RunBackgroundSynth(const SynthArgs& args) {
                 "configs/tum_fr2.yaml)");
   }
   options.camera = LoadCameraConfig(camera_file);
+  // Played backward, a rolling shutter's rows run against the camera's motion: no one readout
+  // fits both halves, so the play's camera.yaml says global shutter.
+  if (args.forward_backward) options.camera.readout_s = 0;
   options.forward_backward = args.forward_backward;
   options.max_frames = args.frames_given ? args.frames : 0;
   options.seed = args.seed;

@@ -34,6 +34,10 @@ void CameraOptions::Check() const {
   Require(within(depth_max, 0, kMaxDepth) && depth_max > depth_min, "depth_max",
           fmt::format("must be larger than depth_min ({:g}) and at most {:g} m, got {:g}",
                       depth_min, kMaxDepth, depth_max));
+  // At most one frame interval: a sensor reads its rows out within a frame.
+  Require(within(readout_s, 0, 1 / fps), "readout_s",
+          fmt::format("must be within 0..{:g} s (one frame at {:g} fps), got {:g}", 1 / fps, fps,
+                      readout_s));
   if (from_dataset) return;
   Require(width > 0 && width <= 16384, "width",
           "must be in 1..16384, got " + std::to_string(width));
@@ -92,6 +96,7 @@ CameraOptions ReadCameraOptions(ConfigMap& section) {
   section.Read("depth_factor", &options.depth_factor);
   section.Read("depth_min", &options.depth_min);
   section.Read("depth_max", &options.depth_max);
+  section.Read("readout_s", &options.readout_s);
   section.RejectUnknownKeys();
   try {
     options.Check();
@@ -120,7 +125,8 @@ void WriteCameraOptions(const CameraOptions& o, YAML::Emitter* out) {
                                    {"fps", o.fps},
                                    {"depth_factor", o.depth_factor},
                                    {"depth_min", o.depth_min},
-                                   {"depth_max", o.depth_max}}) {
+                                   {"depth_max", o.depth_max},
+                                   {"readout_s", o.readout_s}}) {
     y << YAML::Key << key << YAML::Value << value;
   }
   y << YAML::EndMap;

@@ -48,6 +48,10 @@ struct CameraOptions {
   double depth_factor = 5000.0;  // raw 16-bit depth units per metre
   double depth_min = 0.1;        // depth outside [depth_min, depth_max] metres counts as missing
   double depth_max = 10.0;
+  // A rolling shutter's readout: seconds from the first row's exposure to the last's (0: a
+  // global shutter). Tracking moves each feature to the middle row's pose with the camera's
+  // motion (RowMotion in map/frame.h). configs/tum_fr1.yaml says what was measured for the Kinect.
+  double readout_s = 0.0;
   // The intrinsics (size, focal lengths, principal point, distortion) come from the dataset's
   // own calibration (an OMD segment's kalibr.yaml, a TUM folder's camera.yaml) when the run
   // opens it; the depth settings above still come from here.

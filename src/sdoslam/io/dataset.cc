@@ -16,8 +16,9 @@ namespace sdoslam {
 
 namespace {
 
-// The dataset's intrinsics with the run config's depth and rate settings.
+// The dataset's intrinsics with the run config's depth, rate and shutter settings.
 CameraOptions WithDepthSettings(CameraOptions intrinsics, const CameraOptions& config) {
+  intrinsics.readout_s = config.readout_s;
   intrinsics.depth_factor = config.depth_factor;
   intrinsics.depth_min = config.depth_min;
   intrinsics.depth_max = config.depth_max;

@@ -172,6 +172,57 @@ std::vector<int> Frame::FeaturesInArea(double u, double v, double radius, int mi
   return result;
 }
 
+Eigen::Isometry3d RowMotion::ToMiddleRow(double row, int height) const {
+  const double s = (row - 0.5 * height) / height * readout_frames;
+  const Eigen::AngleAxisd turn(per_frame.rotation());
+  // M^s = [R^s | s t] to first order; its inverse is [R^-s | -R^-s s t].
+  const Eigen::Matrix3d R_back =
+      Eigen::AngleAxisd(-s * turn.angle(), turn.axis()).toRotationMatrix();
+  Eigen::Isometry3d back = Eigen::Isometry3d::Identity();
+  back.linear() = R_back;
+  back.translation() = -R_back * (s * per_frame.translation());
+  return back;
+}
+
+std::vector<cv::Point2f> UndistortToMiddleRow(const Camera& camera, const RowMotion& motion,
+                                              const std::vector<cv::Point2f>& detected) {
+  std::vector<cv::Point2f> undistorted = camera.UndistortPoints(detected);
+  if (!motion.active()) return undistorted;
+  for (size_t i = 0; i < undistorted.size(); ++i) {
+    const Eigen::Vector3d ray = motion.ToMiddleRow(detected[i].y, camera.height()).linear() *
+                                camera.Unproject({undistorted[i].x, undistorted[i].y}, 1.0);
+    if (ray.z() <= 0) continue;
+    const Eigen::Vector2d pixel = camera.Project(ray);
+    undistorted[i] = cv::Point2f(static_cast<float>(pixel.x()), static_cast<float>(pixel.y()));
+  }
+  return undistorted;
+}
+
+void Frame::CompensateRollingShutter(const RowMotion& motion) {
+  row_motion = motion;
+  if (!motion.active()) return;
+  const Camera& camera = geometry->camera;
+  for (size_t i = 0; i < size(); ++i) {
+    // Without depth only the ray turns (such points are mostly beyond the sensor's range, where
+    // a few millimetres of translation move nothing).
+    const bool has_depth = depth[i] > 0;
+    const Eigen::Isometry3d back = motion.ToMiddleRow(keypoints[i].pt.y, camera.height());
+    const Eigen::Vector3d middle =
+        has_depth ? Eigen::Vector3d(
+                        back * camera.Unproject({undistorted[i].x, undistorted[i].y}, depth[i]))
+                  : Eigen::Vector3d(back.linear() *
+                                    camera.Unproject({undistorted[i].x, undistorted[i].y}, 1.0));
+    if (middle.z() <= 0) continue;
+    const Eigen::Vector2d pixel = camera.Project(middle);
+    undistorted[i] = cv::Point2f(static_cast<float>(pixel.x()), static_cast<float>(pixel.y()));
+    if (has_depth) {
+      depth[i] = static_cast<float>(middle.z());
+      right_u[i] = static_cast<float>(undistorted[i].x - geometry->intrinsics.bf / depth[i]);
+    }
+  }
+  BuildGrid();
+}
+
 Eigen::Vector3d Frame::UnprojectWorld(int i) const {
   const Eigen::Vector3d p = geometry->camera.Unproject(
       {undistorted[static_cast<size_t>(i)].x, undistorted[static_cast<size_t>(i)].y},

@@ -30,6 +30,29 @@ struct FrameGeometry {
   }
 };
 
+// How the camera moved while a rolling shutter read an image out. A rolling shutter exposes the
+// rows one after another, so under a fast turn each row sees the scene from a slightly different
+// pose: Kinect-class cameras (TUM freiburg1/2) read a frame out over about 23 ms, and a
+// hand-held turn of 50 deg/s shifts the bottom rows 10 px against the top. The pose a frame is
+// tracked at is the middle row's; the motion over a frame (the tracker's constant-velocity model)
+// gives each row's offset from it.
+struct RowMotion {
+  Eigen::Isometry3d per_frame = Eigen::Isometry3d::Identity();  // T_cam(k) * T_cam(k-1)^-1
+  double readout_frames = 0;  // the readout time, first row to last, in frame intervals
+  bool active() const { return readout_frames != 0; }
+  // Takes a point seen (camera coordinates) by row `row` (as detected, distorted) of an image
+  // `height` rows high into the camera of the middle row's exposure: M^-s with M = per_frame and
+  // s = (row - height/2) / height * readout_frames (rotation angle and translation scaled by s:
+  // exact to first order in the small motion of one frame).
+  Eigen::Isometry3d ToMiddleRow(double row, int height) const;
+};
+
+// Undistorts `detected` pixels of an image whose rows moved by `motion`, and turns each one's ray
+// to the middle row's camera (the rotation only: the translation needs depth, and over a few
+// milliseconds it moves a pixel by a fraction of what the turn does).
+std::vector<cv::Point2f> UndistortToMiddleRow(const Camera& camera, const RowMotion& motion,
+                                              const std::vector<cv::Point2f>& detected);
+
 // `image` in grey: converted from BGR (CV_8UC3), or `image` itself when it is grey already.
 cv::Mat GrayImage(const cv::Mat& image);
 
@@ -75,6 +98,9 @@ class Frame {
   bool MakesPoints(int i) const {
     return IsStatic(i) && (unmappable_.empty() || unmappable_[static_cast<size_t>(i)] == 0);
   }
+  // Moves every feature (undistorted position, depth) to where the middle row's camera saw it
+  // (RowMotion), and remembers `motion` in row_motion. Call once, before tracking the frame.
+  void CompensateRollingShutter(const RowMotion& motion);
   // Keypoint i back-projected with its depth, in world coordinates at the frame's pose.
   Eigen::Vector3d UnprojectWorld(int i) const;
   PointObservation Observation(int i) const;
@@ -98,6 +124,7 @@ class Frame {
   // point cloud takes its colours from here (System::StaticMapCloud).
   std::vector<cv::Vec3b> colors;
   Eigen::Isometry3d T_camera_world = Eigen::Isometry3d::Identity();
+  RowMotion row_motion;  // what CompensateRollingShutter applied; inactive: nothing
 
  private:
   void BuildGrid();

@@ -302,6 +302,7 @@ py::dict CameraDict(const CameraOptions& c) {
   d["depth_factor"] = c.depth_factor;
   d["depth_min"] = c.depth_min;
   d["depth_max"] = c.depth_max;
+  d["readout_s"] = c.readout_s;
   return d;
 }
 

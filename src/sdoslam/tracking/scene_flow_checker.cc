@@ -13,14 +13,16 @@ SceneFlowChecker::SceneFlowChecker(Map* map, const SceneFlowOptions& options)
 
 void SceneFlowChecker::RememberFrame(size_t index, bool tracked,
                                      const Eigen::Isometry3d& T_camera_world,
-                                     const ConsistencyInput& input, const KeyFrame* reference) {
+                                     const ConsistencyInput& input, const KeyFrame* reference,
+                                     const RowMotion& row_motion) {
   // Copied (the pyramid holds its own copy of the image): the caller may reuse its buffers for
   // the next frame.
   CurrentPyramid(index, input.gray);
   history_.push_back({index, std::move(current_pyramid_), input.depth.clone(), T_camera_world,
                       tracked, reference,
                       reference != nullptr ? T_camera_world * reference->pose().inverse()
-                                           : Eigen::Isometry3d::Identity()});
+                                           : Eigen::Isometry3d::Identity(),
+                      row_motion});
   current_pyramid_.clear();
   while (static_cast<int>(history_.size()) > options_.frame_gap) history_.pop_front();
 }
@@ -131,7 +133,8 @@ void SceneFlowChecker::RetryOverNearPast(const Frame& frame, const ConsistencyIn
     TrackPointsBack(o, *c.current, near_past->pyramid, retry_points, &near_points, &near_found,
                     &retry_guesses);
   });
-  const std::vector<cv::Point2f> near_undistorted = camera.UndistortPoints(near_points);
+  const std::vector<cv::Point2f> near_undistorted =
+      UndistortToMiddleRow(camera, near_past->row_motion, near_points);
   for (size_t q = 0; q < retry.size(); ++q) {
     if (!near_found[q]) continue;
     const size_t slot = tracked_slot[retry[q]];
@@ -175,7 +178,8 @@ SceneFlowChecker::Correspondences SceneFlowChecker::FollowFeaturesBack(
     c.current = &CurrentPyramid(frame.index, input.gray);
     TrackPointsBack(o, *c.current, past.pyramid, tracked_points, &past_points, &found, &guesses);
   });
-  const std::vector<cv::Point2f> past_undistorted = camera.UndistortPoints(past_points);
+  const std::vector<cv::Point2f> past_undistorted =
+      UndistortToMiddleRow(camera, past.row_motion, past_points);
   const size_t n = c.candidates.size();
   c.measured.assign(n, 0);
   c.ends.resize(n);
@@ -239,7 +243,8 @@ SceneFlowChecker::StaticWorld SceneFlowChecker::FindStaticWorld(
   const LkPyramid& current = *features.current;
   const std::vector<cv::Point2f> samples = map_lock.WithoutMapLock(
       [&] { return GridCorners(so, input.gray, input.depth, LkPyramidImage(current, 1)); });
-  const std::vector<cv::Point2f> samples_undistorted = camera.UndistortPoints(samples);
+  const std::vector<cv::Point2f> samples_undistorted =
+      UndistortToMiddleRow(camera, frame.row_motion, samples);
   const Eigen::Isometry3d T_past_camera = past.T_camera_world * frame.T_camera_world.inverse();
   std::vector<cv::Point2f> sample_guesses;
   for (size_t s = 0; s < samples.size(); ++s) {
@@ -254,7 +259,8 @@ SceneFlowChecker::StaticWorld SceneFlowChecker::FindStaticWorld(
     TrackPointsBack(o, current, past.pyramid, samples, &sample_past, &sample_found,
                     &sample_guesses);
   });
-  const std::vector<cv::Point2f> sample_past_undistorted = camera.UndistortPoints(sample_past);
+  const std::vector<cv::Point2f> sample_past_undistorted =
+      UndistortToMiddleRow(camera, past.row_motion, sample_past);
   const Eigen::Isometry3d T_world_past = past.T_camera_world.inverse();
   std::vector<MotionCorrespondence> correspondences;
   std::vector<cv::Point2f> sample_points;  // those that vote, in sample_ends' order

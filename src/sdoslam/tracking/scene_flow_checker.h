@@ -27,8 +27,10 @@ class SceneFlowChecker {
   // whether it was tracked, for the scene flow of the frames to come; the last frame_gap frames
   // are kept. A frame tracked against `reference` keeps its pose relative to that keyframe, and
   // FollowMap moves it where the keyframe has moved since; without one the pose stays as given.
+  // `row_motion`: how its rows moved (Frame::row_motion), for the points followed into it.
   void RememberFrame(size_t index, bool tracked, const Eigen::Isometry3d& T_camera_world,
-                     const ConsistencyInput& input, const KeyFrame* reference = nullptr);
+                     const ConsistencyInput& input, const KeyFrame* reference = nullptr,
+                     const RowMotion& row_motion = {});
   // Local BA and loop closing have moved keyframes: the remembered poses follow their reference
   // keyframes (culled ones through their parents), or the check would see the whole room move
   // by as much.
@@ -75,6 +77,7 @@ class SceneFlowChecker {
     bool tracked;
     const KeyFrame* reference;  // null: the pose stays as remembered
     Eigen::Isometry3d T_camera_reference;
+    RowMotion row_motion;  // how its rows moved (rolling shutter)
   };
 
   // A correspondence of the check: each end as a ray in the world frame and the depths it may

@@ -112,6 +112,7 @@ bool Tracker::Restart(Frame& frame, KeyFrame** new_keyframe, const ConsistencyIn
   std::fill(frame.map_points.begin(), frame.map_points.end(), nullptr);
   if (StartMap(frame, frame.T_camera_world, new_keyframe, result) == nullptr) return false;
   velocity_ = frame.T_camera_world * candidate->T_camera_world.inverse();
+  velocity_seconds_ = frame.timestamp - candidate->timestamp;
   has_velocity_ = true;
   result->restarted = true;
   result->state = state_;
@@ -222,6 +223,11 @@ void Tracker::DecideKeyFrame(Frame& frame, const KeyFrameChoice& choice, KeyFram
 TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool mapping_idle,
                                    bool mapping_accepts, const ConsistencyInput* consistency) {
   if (!options_.consistency.enabled) consistency = nullptr;
+  // A rolling shutter's rows moved with the camera: the motion model says how far. A lost camera
+  // (no velocity) is found again from the rows as they are.
+  const double readout_s = frame.geometry->camera.options().readout_s;
+  if (readout_s > 0 && state_ == TrackingState::kOk && has_velocity_ && velocity_seconds_ > 0)
+    frame.CompensateRollingShutter({velocity_, readout_s / velocity_seconds_});
   FollowMapChanges();
   *new_keyframe = nullptr;
   ++frame_stamp_;
@@ -262,6 +268,7 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
     // is no velocity, and the motion that was (kept for the next relocalization) stays.
     if (frames_lost_ == 0) {
       velocity_ = frame.T_camera_world * last_frame_->T_camera_world.inverse();
+      velocity_seconds_ = frame.timestamp - last_frame_->timestamp;
       has_velocity_ = true;
     }
     frames_lost_ = 0;
@@ -281,7 +288,7 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
   }
   if (consistency != nullptr)
     checker_.RememberFrame(frame.index, ok, frame.T_camera_world, *consistency,
-                           ok ? reference_ : nullptr);
+                           ok ? reference_ : nullptr, frame.row_motion);
   return result;
 }
 

@@ -137,6 +137,7 @@ class Tracker {
   // Whether the last frame, tracked, had a narrow view of the static world (TrackerOptions).
   bool last_narrow_static_view_ = false;
   Eigen::Isometry3d velocity_ = Eigen::Isometry3d::Identity();
+  double velocity_seconds_ = 0;  // the time velocity_ spans (its two frames' timestamps)
   std::vector<std::unique_ptr<MapPoint>> temporary_points_;
   std::vector<TrajectoryEntry> trajectory_;
   uint64_t frame_stamp_ = 0;
