@@ -31,6 +31,7 @@ struct SynthArgs {
   bool no_noise = false;
   int motion_blur = 0;
   int supersample = 1;
+  double readout = 0;
   bool exposure_changes = false;
   bool overwrite = false;
   bool list = false;
@@ -103,6 +104,8 @@ void RunSynth(const SynthArgs& args) {
     if (!args.motion.empty()) throw Error("--motion does not apply with --background");
     if (args.exposure_changes) throw Error("--exposure-changes does not apply with --background");
     if (args.supersample != 1) throw Error("--supersample does not apply with --background");
+    if (args.readout != 0)
+      throw Error("--readout does not apply with --background (the recording has its own shutter)");
     if (args.layout != "tum" || args.depth_factor != 5000.0)
       throw Error("--layout and --depth-factor do not apply with --background");
     RunBackgroundSynth(args);
@@ -119,6 +122,12 @@ void RunSynth(const SynthArgs& args) {
   options.sensor.enabled = !args.no_noise;
   options.sensor.motion_blur_samples = args.motion_blur;
   options.sensor.supersampling = args.supersample;
+  options.sensor.readout_time = args.readout;
+  if (args.readout != 0 && args.layout == "omd")
+    throw Error("--readout applies only to the TUM layout");
+  if (const double frame_s = 1.0 / synth::SyntheticCamera().fps; args.readout > frame_s)
+    throw Error(fmt::format("--readout must be at most one frame ({:g} s), got {:g}", frame_s,
+                            args.readout));
   options.sensor.exposure_changes = args.exposure_changes;
   options.depth_factor = args.depth_factor;
   synth::SequenceSummary s;
@@ -178,6 +187,11 @@ void AddSynthCommand(CLI::App& app) {
                   "does (1: one ray through the centre, whose sharp texture edges alias)")
       ->check(CLI::Range(1, 8))
       ->capture_default_str();
+  cmd->add_option("--readout", args->readout,
+                  "rolling shutter: seconds from the top row's exposure to the bottom's, the "
+                  "middle row at the frame's time (0: global shutter); camera.yaml gets it as "
+                  "readout_s")
+      ->check(CLI::Range(0.0, 1.0));
   cmd->add_flag("--exposure-changes", args->exposure_changes, "let the exposure drift");
   cmd->add_option("--background", args->background,
                   fmt::format("render the scenario's moving objects into this real static "

@@ -200,7 +200,20 @@ std::shared_ptr<const UndistortedGrid> UndistortedPixels(const Camera& camera) {
 
 RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_world_camera,
                     const Camera& camera) {
-  const int width = camera.width(), height = camera.height();
+  RenderedView view;
+  view.colour.create(camera.height(), camera.width(), CV_32FC3);
+  view.depth.create(camera.height(), camera.width(), CV_32FC1);
+  view.instance.create(camera.height(), camera.width(), CV_16UC1);
+  RenderRows(scene, t, T_world_camera, camera, 0, camera.height(), &view);
+  return view;
+}
+
+void RenderRows(const Scene& scene, double t, const Eigen::Isometry3d& T_world_camera,
+                const Camera& camera, int row_begin, int row_end, RenderedView* out) {
+  const int width = camera.width();
+  RenderedView& view = *out;
+  CV_Assert(view.colour.size() == cv::Size(width, camera.height()) && row_begin >= 0 &&
+            row_end <= camera.height());
 
   std::vector<Primitive> object_parts;
   const std::vector<Candidate> candidates =
@@ -210,10 +223,6 @@ RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_wor
   const std::vector<cv::Point2f>& pixels = grid->pixels;
   const bool distorted = !pixels.empty();  // rays are bounded by direction (Bounds), not pixel
 
-  RenderedView view;
-  view.colour.create(height, width, CV_32FC3);
-  view.depth.create(height, width, CV_32FC1);
-  view.instance.create(height, width, CV_16UC1);
   const CameraOptions& o = camera.options();
   const Eigen::Matrix3d R = T_world_camera.linear();
   const Eigen::Vector3d light = scene.light_direction.normalized();
@@ -276,11 +285,10 @@ RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_wor
     }
   };
 #if defined(__SANITIZE_THREAD__)
-  for (int v = 0; v < height; ++v) render_row(v);
+  for (int v = row_begin; v < row_end; ++v) render_row(v);
 #else
-  tbb::parallel_for(0, height, render_row);
+  tbb::parallel_for(row_begin, row_end, render_row);
 #endif
-  return view;
 }
 
 cv::Mat RenderColour(const Scene& scene, double t, const Eigen::Isometry3d& T_world_camera,

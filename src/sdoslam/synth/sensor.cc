@@ -19,6 +19,9 @@ void SensorOptions::Check() const {
   require(motion_blur_samples >= 0 && motion_blur_samples <= 64, "motion_blur_samples");
   require(exposure_time >= 0 && exposure_time < 1, "exposure_time");
   require(supersampling >= 1 && supersampling <= 8, "supersampling");
+  require(readout_time >= 0 && readout_time < 1, "readout_time");
+  if (readout_time > 0 && (motion_blur_samples > 1 || supersampling > 1))
+    throw Error("a rolling shutter (readout) does not combine with motion blur or supersampling");
 }
 
 SensorFrame Sense(const RenderedView& view, const CameraOptions& camera,

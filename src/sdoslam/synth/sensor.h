@@ -11,6 +11,9 @@
 
 namespace sdoslam::synth {
 
+// Rows rendered at one time under a rolling shutter (a 23 ms readout moves 0.4 ms a band).
+inline constexpr int kRollingShutterBandRows = 8;
+
 // A Kinect-like RGB-D sensor applied to a perfect rendering.
 struct SensorOptions {
   bool enabled = true;             // false: write the perfect rendering (quantised only)
@@ -33,6 +36,11 @@ struct SensorOptions {
   // through each pixel centre (aliased edges, the default docs/results.md's figures use); 2 or more
   // average that many squared over each pixel, as a camera's photosites do.
   int supersampling = 1;
+  // A rolling shutter: the rows are exposed one after another over this many seconds, top to
+  // bottom, the middle row at the frame's time (its pose is the ground truth). 0: all at once.
+  // Rendered in bands of kRollingShutterBandRows rows; not combined with motion blur or
+  // supersampling.
+  double readout_time = 0.0;
 
   void Check() const;
 };

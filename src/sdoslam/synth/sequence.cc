@@ -24,12 +24,37 @@ void SynthOptions::Check() const {
   MakeScenario(scenario, 1.0, motion);  // throws for an unknown name
 }
 
+namespace {
+
+// A rolling shutter's view: each band of rows rendered at its own time, row v at
+// t + (v - h/2) / h * readout (v the band's middle row), with the camera and the objects where
+// they are then.
+RenderedView RenderRollingShutter(const Scenario& scenario, double t, double duration,
+                                  const Camera& camera, double readout) {
+  const int h = camera.height();
+  RenderedView view;
+  view.colour.create(h, camera.width(), CV_32FC3);
+  view.depth.create(h, camera.width(), CV_32FC1);
+  view.instance.create(h, camera.width(), CV_16UC1);
+  for (int row = 0; row < h; row += kRollingShutterBandRows) {
+    const int end = std::min(h, row + kRollingShutterBandRows);
+    const double middle_row = 0.5 * (row + end - 1);
+    const double t_row = t + (middle_row - 0.5 * h) / h * readout;
+    RenderRows(scenario.scene, t_row, CameraPoseAt(scenario.motion, t_row, duration), camera, row,
+               end, &view);
+  }
+  return view;
+}
+
+}  // namespace
+
 SequenceSummary WriteSequence(const SynthOptions& options, const std::filesystem::path& out,
                               bool overwrite) {
   options.Check();
   const auto start = std::chrono::steady_clock::now();
   CameraOptions camera_options = SyntheticCamera();
   camera_options.depth_factor = options.depth_factor;
+  camera_options.readout_s = options.sensor.readout_time;  // checked against the frame rate
   const Camera camera(camera_options);
   const double dt = 1.0 / camera_options.fps;
   const double duration = (options.frames - 1) * dt;
@@ -48,7 +73,10 @@ SequenceSummary WriteSequence(const SynthOptions& options, const std::filesystem
     const Eigen::Isometry3d T_world_camera = CameraPoseAt(scenario.motion, t, duration);
     const auto render_start = std::chrono::steady_clock::now();
 
-    RenderedView view = Render(scenario.scene, t, T_world_camera, camera);
+    RenderedView view = sensor.readout_time > 0 ? RenderRollingShutter(scenario, t, duration,
+                                                                       camera, sensor.readout_time)
+                                                : Render(scenario.scene, t, T_world_camera, camera);
+    // (SensorOptions::Check keeps blur and supersampling away from a rolling shutter.)
     if (sensor.enabled && sensor.motion_blur_samples > 1) {
       cv::Mat sum = cv::Mat::zeros(view.colour.size(), CV_32FC3);
       for (int s = 0; s < sensor.motion_blur_samples; ++s) {
@@ -83,6 +111,7 @@ SequenceSummary WriteSequence(const SynthOptions& options, const std::filesystem
        << YAML::Value << fmt::format("{}", sensor.depth_distortion) << YAML::Key
        << "motion_blur_samples" << YAML::Value << options.sensor.motion_blur_samples << YAML::Key
        << "supersampling" << YAML::Value << options.sensor.supersampling << YAML::Key
+       << "readout_time" << YAML::Value << options.sensor.readout_time << YAML::Key
        << "exposure_changes" << YAML::Value << options.sensor.exposure_changes << YAML::EndMap;
   SequenceSummary summary = writer.Finish(camera_options, scenario.scene, info);
   summary.render_seconds = render_seconds;
