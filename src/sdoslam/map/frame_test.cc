@@ -7,23 +7,15 @@
 #include <algorithm>
 #include <opencv2/core.hpp>
 
+#include "sdoslam/testing/test_util.h"
+
 namespace sdoslam {
 namespace {
 
-// freiburg1's calibration: strong radial distortion, so the row a feature is detected on differs
-// from its undistorted one by several pixels near the edges.
+// freiburg1's calibration (configs/tum_fr1.yaml): strong radial distortion, so the row a feature
+// is detected on differs from its undistorted one by several pixels near the edges.
 Camera Freiburg1() {
-  CameraOptions o;
-  o.fx = 517.306408;
-  o.fy = 516.469215;
-  o.cx = 318.643040;
-  o.cy = 255.313989;
-  o.k1 = 0.262383;
-  o.k2 = -0.953104;
-  o.p1 = -0.005358;
-  o.p2 = 0.002628;
-  o.k3 = 1.163314;
-  return Camera(o);
+  return Camera(LoadCameraConfig(testing::SourceDir() / "configs" / "tum_fr1.yaml"));
 }
 
 // A camera turning at constant angular velocity while its centre moves at constant velocity:
