@@ -32,8 +32,8 @@ struct FrameGeometry {
 
 // How the camera moved while a rolling shutter read an image out. A rolling shutter exposes the
 // rows one after another, so under a fast turn each row sees the scene from a slightly different
-// pose: Kinect-class cameras (TUM freiburg1/2) read a frame out over about 23 ms, and a
-// hand-held turn of 50 deg/s shifts the bottom rows 10 px against the top. The pose a frame is
+// pose: the freiburg1 Kinect (TUM) reads a frame out over about 23 ms, and a hand-held turn of
+// 50 deg/s shifts the bottom rows 10 px against the top. The pose a frame is
 // tracked at is the middle row's; the motion over a frame (the tracker's constant-velocity model)
 // gives each row's offset from it.
 struct RowMotion {
