@@ -173,14 +173,13 @@ std::vector<int> Frame::FeaturesInArea(double u, double v, double radius, int mi
 }
 
 Eigen::Isometry3d RowMotion::ToMiddleRow(double row, int height) const {
-  const double s = (row - 0.5 * height) / height * readout_frames;
-  const Eigen::AngleAxisd turn(per_frame.rotation());
+  const double s = (row - 0.5 * height) / height * readout_frames_;
   // M^s = [R^s | s t] to first order; its inverse is [R^-s | -R^-s s t].
   const Eigen::Matrix3d R_back =
-      Eigen::AngleAxisd(-s * turn.angle(), turn.axis()).toRotationMatrix();
+      Eigen::AngleAxisd(-s * turn_.angle(), turn_.axis()).toRotationMatrix();
   Eigen::Isometry3d back = Eigen::Isometry3d::Identity();
   back.linear() = R_back;
-  back.translation() = -R_back * (s * per_frame.translation());
+  back.translation() = -R_back * (s * translation_);
   return back;
 }
 

@@ -36,15 +36,27 @@ struct FrameGeometry {
 // 50 deg/s shifts the bottom rows 10 px against the top. The pose a frame is
 // tracked at is the middle row's; the motion over a frame (the tracker's constant-velocity model)
 // gives each row's offset from it.
-struct RowMotion {
-  Eigen::Isometry3d per_frame = Eigen::Isometry3d::Identity();  // T_cam(k) * T_cam(k-1)^-1
-  double readout_frames = 0;  // the readout time, first row to last, in frame intervals
-  bool active() const { return readout_frames != 0; }
+class RowMotion {
+ public:
+  RowMotion() = default;  // no rolling shutter: inactive
+  // `per_frame`: T_cam(k) * T_cam(k-1)^-1; `readout_frames`: the readout time, first row to
+  // last, in frame intervals. The turn is taken apart into axis and angle once, here, not per
+  // feature.
+  RowMotion(const Eigen::Isometry3d& per_frame, double readout_frames)
+      : turn_(per_frame.linear()),
+        translation_(per_frame.translation()),
+        readout_frames_(readout_frames) {}
+  bool active() const { return readout_frames_ != 0; }
   // Takes a point seen (camera coordinates) by row `row` (as detected, distorted) of an image
   // `height` rows high into the camera of the middle row's exposure: M^-s with M = per_frame and
   // s = (row - height/2) / height * readout_frames (rotation angle and translation scaled by s:
   // exact to first order in the small motion of one frame).
   Eigen::Isometry3d ToMiddleRow(double row, int height) const;
+
+ private:
+  Eigen::AngleAxisd turn_{0.0, Eigen::Vector3d::UnitZ()};
+  Eigen::Vector3d translation_ = Eigen::Vector3d::Zero();
+  double readout_frames_ = 0;
 };
 
 // Undistorts `detected` pixels of an image whose rows moved by `motion`, and turns each one's ray

@@ -112,8 +112,7 @@ class RollingShutterTest : public ::testing::Test {
   const Eigen::AngleAxisd turn_{2.5 * M_PI / 180, Eigen::Vector3d(0.3, 1.0, -0.4).normalized()};
   const Eigen::Vector3d velocity_{0.010, -0.006, 0.009};
   RowMotion Motion(double readout) const {
-    Eigen::Isometry3d per_frame = PoseAfter(1.0, turn_, velocity_);
-    return {per_frame, readout};
+    return RowMotion(PoseAfter(1.0, turn_, velocity_), readout);
   }
 };
 

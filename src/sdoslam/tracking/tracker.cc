@@ -227,7 +227,7 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
   // (no velocity) is found again from the rows as they are.
   const double readout_s = frame.geometry->camera.options().readout_s;
   if (readout_s > 0 && state_ == TrackingState::kOk && has_velocity_ && velocity_seconds_ > 0)
-    frame.CompensateRollingShutter({velocity_, readout_s / velocity_seconds_});
+    frame.CompensateRollingShutter(RowMotion(velocity_, readout_s / velocity_seconds_));
   FollowMapChanges();
   *new_keyframe = nullptr;
   ++frame_stamp_;
