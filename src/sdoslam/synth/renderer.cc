@@ -198,12 +198,17 @@ std::shared_ptr<const UndistortedGrid> UndistortedPixels(const Camera& camera) {
 
 }  // namespace
 
-RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_world_camera,
-                    const Camera& camera) {
+RenderedView AllocateView(const Camera& camera) {
   RenderedView view;
   view.colour.create(camera.height(), camera.width(), CV_32FC3);
   view.depth.create(camera.height(), camera.width(), CV_32FC1);
   view.instance.create(camera.height(), camera.width(), CV_16UC1);
+  return view;
+}
+
+RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_world_camera,
+                    const Camera& camera) {
+  RenderedView view = AllocateView(camera);
   RenderRows(scene, t, T_world_camera, camera, 0, camera.height(), &view);
   return view;
 }

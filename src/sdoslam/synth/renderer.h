@@ -19,8 +19,10 @@ struct RenderedView {
 // the inputs, so the result is the same whatever the number of threads.
 RenderedView Render(const Scene& scene, double t, const Eigen::Isometry3d& T_world_camera,
                     const Camera& camera);
-// Render's rows [row_begin, row_end) into `view` (image-sized, allocated by the caller); the
-// other rows are left as they are. A rolling shutter renders its bands this way.
+// An image-sized view for RenderRows to fill (contents undefined).
+RenderedView AllocateView(const Camera& camera);
+// Render's rows [row_begin, row_end) into `view` (from AllocateView); the other rows are left
+// as they are. A rolling shutter renders its bands this way.
 void RenderRows(const Scene& scene, double t, const Eigen::Isometry3d& T_world_camera,
                 const Camera& camera, int row_begin, int row_end, RenderedView* view);
 

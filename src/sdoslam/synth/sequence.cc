@@ -32,10 +32,7 @@ namespace {
 RenderedView RenderRollingShutter(const Scenario& scenario, double t, double duration,
                                   const Camera& camera, double readout) {
   const int h = camera.height();
-  RenderedView view;
-  view.colour.create(h, camera.width(), CV_32FC3);
-  view.depth.create(h, camera.width(), CV_32FC1);
-  view.instance.create(h, camera.width(), CV_16UC1);
+  RenderedView view = AllocateView(camera);
   for (int row = 0; row < h; row += kRollingShutterBandRows) {
     const int end = std::min(h, row + kRollingShutterBandRows);
     const double middle_row = 0.5 * (row + end - 1);
