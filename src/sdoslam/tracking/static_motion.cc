@@ -1,7 +1,9 @@
 #include "sdoslam/tracking/static_motion.h"
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <opencv2/imgproc.hpp>
 #include <optional>
 #include <random>
@@ -20,6 +22,7 @@ void StaticMotionOptions::Check(const std::string& path) const {
   if (!(inlier_px > 0)) throw Error(path + "inlier_px must be positive");
   if (!(min_gain >= 0)) throw Error(path + "min_gain must be >= 0");
   if (min_extra_samples < 0) throw Error(path + "min_extra_samples must be >= 0");
+  if (!(min_shift_px >= 0)) throw Error(path + "min_shift_px must be >= 0");
   if (min_correspondences < 3) throw Error(path + "min_correspondences must be >= 3");
 }
 
@@ -31,6 +34,23 @@ bool IsInlier(const PinholeIntrinsics& k, const MotionCorrespondence& m, const E
   if (p.z() <= 1e-6) return false;
   const Eigen::Vector2d uv(k.fx * p.x() / p.z() + k.cx, k.fy * p.y() / p.z() + k.cy);
   return (uv - m.current_pixel).squaredNorm() <= limit2;
+}
+
+// How far `T` moves the correspondences' projections from where `rough` puts them: the median
+// over the correspondences, in px.
+double MedianShiftPx(const PinholeIntrinsics& k, const std::vector<MotionCorrespondence>& matches,
+                     const Eigen::Isometry3d& T, const Eigen::Isometry3d& rough) {
+  std::vector<double> shifts;
+  for (const MotionCorrespondence& m : matches) {
+    const Eigen::Vector3d a = T * m.past_world, b = rough * m.past_world;
+    if (a.z() <= 1e-6 || b.z() <= 1e-6) continue;
+    shifts.push_back(
+        std::hypot(k.fx * (a.x() / a.z() - b.x() / b.z()), k.fy * (a.y() / a.z() - b.y() / b.z())));
+  }
+  if (shifts.empty()) return 0;
+  const auto middle = shifts.begin() + static_cast<std::ptrdiff_t>(shifts.size() / 2);
+  std::nth_element(shifts.begin(), middle, shifts.end());
+  return *middle;
 }
 
 // The rigid motion of all inliers of T (3-D–3-D, closed form), or T when too few.
@@ -208,6 +228,8 @@ StaticMotionResult FindStaticMotion(const StaticMotionOptions& options, const Pi
     best_inliers = inliers;
   }
   if (!clearly_more(best_inliers)) return result;
+  // Within the samples' noise of the rough pose: a fit to that noise, not another motion.
+  if (MedianShiftPx(k, matches, best, rough) < options.min_shift_px) return result;
   result.replaced = true;
   result.T_camera_world = best;
   result.inliers = best_inliers;
