@@ -44,13 +44,15 @@ struct StaticMotionOptions {
   // (the real-background mixed play).
   int min_extra_samples = 10;
   // ... and only when it moves the samples' projections by at least this much (px, median over
-  // the samples) from where the rough pose puts them. Over the check's five frames the samples
-  // are a few pixels noisy (blur, Lucas–Kanade, the past frame's own pose error), and among 200
-  // draws one fits that noise better than the true motion: on real fr1_rpy frames, where nothing
-  // moves, the winner replaced the pose in 53 of 300 frames, 1-3 px from it, and the features it
-  // did not explain (up to 600 a frame) were judged moving. A pose dragged by a mover is off by
-  // more than the noise. 0: any shift.
-  double min_shift_px = 3.0;
+  // the samples) from where the rough pose puts them. On fast hand-held turns the samples,
+  // followed over five blurred frames, are a few pixels off, and among 200 draws one fits that
+  // error better than the true motion: on real fr1_rpy frames, where nothing moves, the winner
+  // replaced the pose in 53 of 300 frames, 1-3 px from it, and the features it did not explain
+  // (up to 600 a frame) were judged moving; configs/tum_fr1.yaml sets 3. 0 (the default): any
+  // shift, because on slow footage a mapped crate pushed aside drags the pose by only 1-2 px and
+  // replacing it there is right (the real-background pushed_box play, seed 3: 6.1 mm at 0,
+  // 8.2 at 3).
+  double min_shift_px = 0.0;
   int min_correspondences = 30;
   uint32_t seed = 7;  // RANSAC draws; runs stay repeatable
   void Check(const std::string& path = "tracking.consistency.static_motion.") const;
