@@ -87,9 +87,10 @@ INSTANTIATE_TEST_SUITE_P(Extended, SyntheticStatic, ::testing::Values("rpy", "ha
 // A rolling shutter (synth --readout: every band of rows rendered at its own time) under the
 // synthetic hand-held turning (rpy, 2 s): tracked as if the shutter were global, the rows'
 // motion goes into the poses (37.8 mm against 4.4 with a global shutter); with camera.readout_s
-// the tracker moves the features back to the middle row's camera (13.7 mm). What is left comes
-// from the start: the first two frames have no motion model and are used as seen, and the map
-// they begin holds their error (rpy turns fastest at its start).
+// the tracker moves the features back to the middle row's camera (5.8 mm). The first two frames
+// have no motion model and are used as seen; once the second gives the velocity, the keyframes
+// they made and the points of those keyframes move too. Without that the map kept the first
+// frames' error (13.7 mm; rpy turns fastest at its start), over this test's bar.
 TEST(SlamRollingShutter, CompensatedRowsTrackCloseToAGlobalShutter) {
   testing::TempDir dir;
   constexpr int kFrames = 60;
@@ -115,8 +116,8 @@ TEST(SlamRollingShutter, CompensatedRowsTrackCloseToAGlobalShutter) {
   std::cout << "rolling shutter, ATE: global " << global << ", ignored " << ignored
             << ", compensated " << compensated << '\n';
   EXPECT_GT(ignored, 4 * global);  // the rendering's shutter does what a rolling one does
-  EXPECT_LT(compensated, 0.5 * ignored);
-  EXPECT_LT(compensated, 0.02);
+  EXPECT_LT(compensated, 0.25 * ignored);
+  EXPECT_LT(compensated, 2 * global);
 }
 
 TEST(SlamReal, Fr2Desk50WithinFiveMillimetres) {

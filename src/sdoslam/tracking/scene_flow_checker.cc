@@ -42,6 +42,12 @@ const SceneFlowChecker::PastFrame* SceneFlowChecker::TrackedPastFrame(size_t ind
   return nullptr;
 }
 
+void SceneFlowChecker::CompensateRecentFrames(size_t index, const RowMotion& motion) {
+  for (PastFrame& past : history_) {
+    if (!past.row_motion.active() && past.index + 2 >= index) past.row_motion = motion;
+  }
+}
+
 void SceneFlowChecker::FollowMap() {
   for (PastFrame& past : history_) {
     if (past.reference != nullptr)

@@ -35,6 +35,9 @@ class SceneFlowChecker {
   // keyframes (culled ones through their parents), or the check would see the whole room move
   // by as much.
   void FollowMap();
+  // The remembered frames from `index` − 2 on whose rows were taken as seen (no RowMotion):
+  // their rows moved by `motion` (Tracker::CompensateRecentKeyFrames).
+  void CompensateRecentFrames(size_t index, const RowMotion& motion);
   size_t remembered() const { return history_.size(); }
   // Forgets the remembered frames: the map started again, and their poses are in the old one.
   void Forget() { history_.clear(); }

@@ -263,9 +263,12 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
   state_ = ok ? TrackingState::kOk : TrackingState::kLost;
   result.state = state_;
   result.T_camera_world = frame.T_camera_world;
+  bool first_velocity = false;
+  RowMotion first_rows_moved;  // set where first_velocity finds a rolling shutter
   if (ok) {
     // After frames lost, the last tracked frame is several frames back: its motion to this one
     // is no velocity, and the motion that was (kept for the next relocalization) stays.
+    first_velocity = frames_lost_ == 0 && !has_velocity_;
     if (frames_lost_ == 0) {
       velocity_ = frame.T_camera_world * last_frame_->T_camera_world.inverse();
       velocity_seconds_ = frame.timestamp - last_frame_->timestamp;
@@ -278,6 +281,10 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
                     .judged = judged,
                     .consistency = consistency},
                    new_keyframe, &result);
+    if (first_velocity && readout_s > 0 && velocity_seconds_ > 0) {
+      first_rows_moved = RowMotion(velocity_, readout_s / velocity_seconds_);
+      CompensateRecentKeyFrames(frame.index, first_rows_moved);
+    }
     trajectory_.push_back(
         {frame.timestamp, reference_, frame.T_camera_world * reference_->pose().inverse()});
     last_frame_ = std::make_unique<Frame>(result.keyframe ? (*new_keyframe)->frame : frame);
@@ -286,10 +293,29 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
     ++frames_lost_;
     trajectory_.push_back({frame.timestamp, nullptr, Eigen::Isometry3d::Identity()});
   }
-  if (consistency != nullptr)
+  if (consistency != nullptr) {
     checker_.RememberFrame(frame.index, ok, frame.T_camera_world, *consistency,
                            ok ? reference_ : nullptr, frame.row_motion);
+    if (first_rows_moved.active()) checker_.CompensateRecentFrames(frame.index, first_rows_moved);
+  }
   return result;
+}
+
+void Tracker::CompensateRecentKeyFrames(size_t index, const RowMotion& motion) {
+  for (const auto& [id, owned] : map_->keyframes()) {
+    KeyFrame* keyframe = owned.get();
+    Frame& seen = keyframe->frame;
+    if (keyframe->bad || seen.row_motion.active() || seen.index + 2 < index) continue;
+    seen.CompensateRollingShutter(motion);
+    for (size_t i = 0; i < seen.size(); ++i) {
+      MapPoint* point = seen.map_points[i];
+      if (point == nullptr || point->bad || point->reference != keyframe ||
+          !seen.HasDepth(static_cast<int>(i)))
+        continue;
+      point->position = seen.UnprojectWorld(static_cast<int>(i));
+      point->UpdateFromObservations();
+    }
+  }
 }
 
 void Tracker::MakeTemporaryPoints() {

@@ -121,6 +121,12 @@ class Tracker {
   // What the relocalizer needs of the last tracked frame.
   Relocalizer::Prior RelocalizationPrior() const;
   void MakeTemporaryPoints();
+  // The first frames of a map (or after a loss) are made before the motion model knows how the
+  // camera moves, so a rolling shutter's rows stay as seen. Once frame `index` gives the
+  // velocity, the keyframes made in the last two frames without compensation take it
+  // (Frame::CompensateRollingShutter), and the points made from their depth move with their
+  // features. (TrackFrame hands the same motion to the frames the check remembers.)
+  void CompensateRecentKeyFrames(size_t index, const RowMotion& motion);
 
   Map* map_;
   MapLockReleaser map_lock_;  // during Track, the lock it was given
