@@ -64,23 +64,28 @@ Outcome RunAndSignal(const std::vector<std::string>& arguments, std::chrono::mil
 
 class Interrupts : public ::testing::Test {
  protected:
-  static void SetUpTestSuite() {
-    dir_ = new testing::TempDir;
-    const Outcome synth = RunAndSignal(
-        {"synth", "--scenario", "walking_xyz", "--frames", "150", "--out", Seq().string()},
-        std::chrono::milliseconds(0), {});
-    ASSERT_TRUE(synth.exited && synth.code == 0);
-  }
+  static void SetUpTestSuite() { dir_ = new testing::TempDir; }
   static void TearDownTestSuite() { delete dir_; }
-  static fs::path Seq() { return *dir_ / "seq"; }
+  // A walking_xyz sequence of `frames` frames, rendered on first use. ctest runs each test in a
+  // process of its own, so each renders what it needs and no more (150 frames take ~11 s).
+  static fs::path Seq(int frames) {
+    const fs::path seq = *dir_ / ("seq_" + std::to_string(frames));
+    if (!fs::exists(seq)) {
+      const Outcome synth = RunAndSignal({"synth", "--scenario", "walking_xyz", "--frames",
+                                          std::to_string(frames), "--out", seq.string()},
+                                         std::chrono::milliseconds(0), {});
+      EXPECT_TRUE(synth.exited && synth.code == 0);
+    }
+    return seq;
+  }
   static testing::TempDir* dir_;
 };
 testing::TempDir* Interrupts::dir_ = nullptr;
 
 TEST_F(Interrupts, TwentyRandomInterruptsLeaveTheOldSetOrTheNewNeverAMix) {
-  const fs::path out = *dir_ / "out";
+  const fs::path out = *dir_ / "out", seq = Seq(150);
   const std::vector<std::string> run = {
-      "run",   "--dataset",  Seq().string(), "--config",    (Seq() / "camera.yaml").string(),
+      "run",   "--dataset",  seq.string(), "--config",    (seq / "camera.yaml").string(),
       "--out", out.string(), "--sequential", "--save-masks"};
   std::mt19937 random(17);
   std::uniform_int_distribution<int> delay_ms(150, 2500);
@@ -137,7 +142,7 @@ TEST_F(Interrupts, TwentyRandomInterruptsLeaveTheOldSetOrTheNewNeverAMix) {
     EXPECT_EQ(partial.size(), m.info.at("frames_tracked").get<size_t>());
     if (partial.size() >= 3) {
       const Outcome eval =
-          RunAndSignal({"eval", "--gt", (Seq() / "groundtruth.txt").string(), "--est",
+          RunAndSignal({"eval", "--gt", (seq / "groundtruth.txt").string(), "--est",
                         (out / "CameraTrajectory.txt").string(), "--no-plots"},
                        std::chrono::milliseconds(0), {});
       EXPECT_TRUE(eval.exited && eval.code == 0);
@@ -210,10 +215,10 @@ int DurationMs(const std::vector<std::string>& arguments) {
 // and the next write tidies away what the killed one left beside them.
 TEST_F(Interrupts, TwentyRandomKillsOfEachWriterLeaveTheOldResultsOrTheNewOnes) {
   std::mt19937 random(23);
-  const fs::path out = *dir_ / "killed_run";
-  const std::vector<std::string> run = {
-      "run",   "--dataset",  Seq().string(), "--config",     (Seq() / "camera.yaml").string(),
-      "--out", out.string(), "--sequential", "--max-frames", "20"};
+  const fs::path out = *dir_ / "killed_run", seq = Seq(20);
+  const std::vector<std::string> run = {"run",   "--dataset",  seq.string(),
+                                        "--config", (seq / "camera.yaml").string(),
+                                        "--out", out.string(), "--sequential"};
   // Between a third of a run and twice its time (a loaded machine varies): some kills land
   // before the end, some after.
   const auto kill_delay = [&random](int duration_ms) {
@@ -240,12 +245,12 @@ TEST_F(Interrupts, TwentyRandomKillsOfEachWriterLeaveTheOldResultsOrTheNewOnes) 
   };
   const std::vector<std::string> convert = {"convert", "--dataset",       synth_out.string(),
                                             "--out",   copy_out.string(), "--overwrite"};
-  const int synth_ms = DurationMs(synth(9));
+  const int synth_ms = DurationMs(synth(4));
   const int convert_ms = DurationMs(convert);
   int synth_replaced = 0, copy_replaced = 0;
   for (int trial = 0; trial < 20; ++trial) {
     SCOPED_TRACE("synth/convert trial " + std::to_string(trial));
-    const size_t frames = 8 + trial % 2;
+    const size_t frames = 3 + trial % 2;
     const size_t before = FramesListed(synth_out);
     RunAndSignal(synth(frames), kill_delay(synth_ms), {SIGKILL});
     auto [listed, present] = ListedAndPresent(synth_out);
@@ -268,7 +273,7 @@ TEST_F(Interrupts, TwentyRandomKillsOfEachWriterLeaveTheOldResultsOrTheNewOnes) 
   EXPECT_GE(synth_replaced, 2);
   EXPECT_LE(synth_replaced, 18);
   // What the killed writers left beside their folders goes with the next complete write.
-  DurationMs(synth(3));
+  DurationMs(synth(2));
   DurationMs(convert);
   EXPECT_EQ(CountHidden(dir_->path()), 0);
   std::cout << run_changed << " runs, " << synth_replaced << " synths, " << copy_replaced
