@@ -85,7 +85,7 @@ testing::TempDir* Interrupts::dir_ = nullptr;
 TEST_F(Interrupts, TwentyRandomInterruptsLeaveTheOldSetOrTheNewNeverAMix) {
   const fs::path out = *dir_ / "out", seq = Seq(150);
   const std::vector<std::string> run = {
-      "run",   "--dataset",  seq.string(), "--config",    (seq / "camera.yaml").string(),
+      "run",   "--dataset",  seq.string(),   "--config",    (seq / "camera.yaml").string(),
       "--out", out.string(), "--sequential", "--save-masks"};
   std::mt19937 random(17);
   std::uniform_int_distribution<int> delay_ms(150, 2500);
@@ -216,9 +216,9 @@ int DurationMs(const std::vector<std::string>& arguments) {
 TEST_F(Interrupts, TwentyRandomKillsOfEachWriterLeaveTheOldResultsOrTheNewOnes) {
   std::mt19937 random(23);
   const fs::path out = *dir_ / "killed_run", seq = Seq(20);
-  const std::vector<std::string> run = {"run",   "--dataset",  seq.string(),
-                                        "--config", (seq / "camera.yaml").string(),
-                                        "--out", out.string(), "--sequential"};
+  const std::vector<std::string> run = {
+      "run",   "--dataset",  seq.string(),  "--config", (seq / "camera.yaml").string(),
+      "--out", out.string(), "--sequential"};
   // Between a third of a run and twice its time (a loaded machine varies): some kills land
   // before the end, some after.
   const auto kill_delay = [&random](int duration_ms) {
