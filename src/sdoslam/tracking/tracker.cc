@@ -226,8 +226,17 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
   // A rolling shutter's rows moved with the camera: the motion model says how far. A lost camera
   // (no velocity) is found again from the rows as they are.
   const double readout_s = frame.geometry->camera.options().readout_s;
-  if (readout_s > 0 && state_ == TrackingState::kOk && has_velocity_ && velocity_seconds_ > 0)
+  // The rows as the shutter saw them, for the refit (TrackingOptions::rolling_shutter_refit).
+  std::vector<cv::Point2f> seen_undistorted;
+  std::vector<float> seen_depth, seen_right_u;
+  if (readout_s > 0 && state_ == TrackingState::kOk && has_velocity_ && velocity_seconds_ > 0) {
+    if (options_.rolling_shutter_refit) {
+      seen_undistorted = frame.undistorted;
+      seen_depth = frame.depth;
+      seen_right_u = frame.right_u;
+    }
     frame.CompensateRollingShutter(RowMotion(velocity_, readout_s / velocity_seconds_));
+  }
   FollowMapChanges();
   *new_keyframe = nullptr;
   ++frame_stamp_;
@@ -244,6 +253,16 @@ TrackingResult Tracker::TrackFrame(Frame frame, KeyFrame** new_keyframe, bool ma
     return Initialize(frame, new_keyframe, consistency, std::move(result));
 
   bool ok = TrackPose(frame, &result);
+  const double seconds_since_last = last_frame_ ? frame.timestamp - last_frame_->timestamp : 0;
+  if (ok && !seen_undistorted.empty() && seconds_since_last > 0) {
+    frame.undistorted = std::move(seen_undistorted);
+    frame.depth = std::move(seen_depth);
+    frame.right_u = std::move(seen_right_u);
+    frame.CompensateRollingShutter(
+        RowMotion(frame.T_camera_world * last_frame_->T_camera_world.inverse(),
+                  readout_s / seconds_since_last));
+    OptimizeAndCount(frame);
+  }
   if (ok) {
     restart_candidate_.reset();
   } else if (Restart(frame, new_keyframe, consistency, &result)) {

@@ -41,6 +41,11 @@ struct TrackerOptions {
   // 1x finds, and tracking drifts; 3 fixes that but costs accuracy on slow footage (fr2_desk), so
   // 1 stays the default and configs/tum_fr1.yaml sets 3 (docs/results.md, TUM fr1_rpy).
   double local_map_radius = 1.0;
+  // With a rolling shutter (camera.readout_s), the rows are first moved by the motion model's
+  // velocity, the motion of the frames before; where the hand turns back, that is the wrong
+  // motion. true: once the pose is found, the rows are moved again by the motion to this frame
+  // as tracked, and the pose is optimised once more against the same matches.
+  bool rolling_shutter_refit = true;
   // Lost: the reference keyframe, this many of its best neighbours and this many of the last
   // keyframes are tried, each by descriptor matching and PnP in RANSAC.
   int relocalization_candidates = 5;
@@ -100,6 +105,7 @@ struct TrackerOptions {
     visit("close_points_to_create", o.close_points_to_create);
     visit("projection_radius", o.projection_radius);
     visit("local_map_radius", o.local_map_radius);
+    visit("rolling_shutter_refit", o.rolling_shutter_refit);
     visit("relocalization_candidates", o.relocalization_candidates);
     visit("relocalization_place_candidates", o.relocalization_place_candidates);
     visit("relocalization_prior_frames", o.relocalization_prior_frames);
